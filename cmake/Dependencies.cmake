@@ -1,0 +1,40 @@
+# Every dependency is a Debian 12 package (scripts/install-deps.sh installs them).
+find_package(Eigen3 3.3 REQUIRED NO_MODULE)
+find_package(PkgConfig REQUIRED)
+find_package(Threads REQUIRED)
+find_package(SQLite3 REQUIRED)
+find_package(nlohmann_json 3 REQUIRED)
+find_package(spdlog REQUIRED)
+find_package(CLI11 CONFIG REQUIRED)
+find_package(GTest REQUIRED)
+find_package(benchmark REQUIRED)
+find_package(PNG REQUIRED)
+find_package(ZLIB REQUIRED)
+
+pkg_check_modules(SODIUM REQUIRED IMPORTED_TARGET libsodium)
+pkg_check_modules(ZSTD REQUIRED IMPORTED_TARGET libzstd)
+
+# OpenMesh: Debian ships headers and libs without a usable CMake config.
+find_path(OPENMESH_INCLUDE_DIR OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh REQUIRED)
+find_library(OPENMESH_CORE_LIB OpenMeshCore REQUIRED)
+find_library(OPENMESH_TOOLS_LIB OpenMeshTools REQUIRED)
+add_library(mm_openmesh INTERFACE)
+target_include_directories(mm_openmesh SYSTEM INTERFACE ${OPENMESH_INCLUDE_DIR})
+target_link_libraries(mm_openmesh INTERFACE ${OPENMESH_TOOLS_LIB} ${OPENMESH_CORE_LIB})
+target_compile_definitions(mm_openmesh INTERFACE _USE_MATH_DEFINES)
+
+# OpenSubdiv: Debian's CMake config is broken; link osdCPU and use <opensubdiv/far/...>.
+find_path(OSD_INCLUDE_DIR opensubdiv/far/topologyRefiner.h REQUIRED)
+find_library(OSD_CPU_LIB osdCPU REQUIRED)
+add_library(mm_opensubdiv INTERFACE)
+target_include_directories(mm_opensubdiv SYSTEM INTERFACE ${OSD_INCLUDE_DIR})
+target_link_libraries(mm_opensubdiv INTERFACE ${OSD_CPU_LIB})
+
+# Spectra (header-only) for partial eigen-decompositions of large meshes.
+find_path(SPECTRA_INCLUDE_DIR Spectra/SymEigsSolver.h REQUIRED)
+add_library(mm_spectra INTERFACE)
+target_include_directories(mm_spectra SYSTEM INTERFACE ${SPECTRA_INCLUDE_DIR})
+target_link_libraries(mm_spectra INTERFACE Eigen3::Eigen)
+
+# CGAL 5.5 is header-only; used for AABB-tree distances.
+find_package(CGAL REQUIRED)

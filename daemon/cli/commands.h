@@ -1,0 +1,17 @@
+// Each group of `meshmark` subcommands registers itself on the app. A command reports failure by
+// throwing: mm::InputError (bad input file or stream) -> exit 2, CommandFailed -> its own code,
+// anything else -> exit 3. Usage errors exit 64. See docs/cli.md.
+#pragma once
+#include <CLI/CLI.hpp>
+#include <stdexcept>
+
+namespace mm::cli {
+
+struct CommandFailed : std::runtime_error {
+  CommandFailed(int exit_code, const std::string& what) : std::runtime_error(what), code(exit_code) {}
+  int code;
+};
+
+void add_offline_commands(CLI::App& app);  // keygen, embed, extract, info
+
+}  // namespace mm::cli
