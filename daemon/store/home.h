@@ -1,0 +1,26 @@
+// The meshmark home folder: where one installation keeps its database, blobs and master key.
+//   <home>/meshmark.db     SQLite store
+//   <home>/blobs/          content-addressed files (FsBlobStore)
+//   <home>/master.key      master key, mode 0600 (unless MESHMARK_MASTER_KEY is set)
+// The home is --home, else $MESHMARK_HOME, else ./meshmark-home.
+#pragma once
+#include <memory>
+#include <string>
+
+#include "store/store.h"
+
+namespace mm::store {
+
+struct HomePaths {
+  std::string root, db, blobs, master_key;
+};
+
+HomePaths resolve_home(const std::string& home_option);  // "" = env or default
+// Creates the folder (0700), a master key file if neither it nor MESHMARK_MASTER_KEY exists, and
+// the database with all migrations. Returns true if anything was created.
+bool init_home(const HomePaths& home);
+// Opens the store of an initialized home (StoreError if not initialized). need_master_key loads
+// the master key (KeyError if missing or badly protected); without it key operations throw.
+std::unique_ptr<Store> open_home(const HomePaths& home, bool need_master_key, StoreOptions base = {});
+
+}  // namespace mm::store
