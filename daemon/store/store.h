@@ -147,6 +147,7 @@ JobState job_state_from_string(const std::string& s);  // StoreError if unknown
 //                 left, or not retryable; also lease expired with none left), available (lease
 //                 expired with attempts left, or release on shutdown), cancelled (cancel)
 //   discarded  -> available (retry), cancelled -> available (retry); completed is final.
+// Worker ids must be unique per worker thread and process (e.g. "host:pid:thread").
 bool job_transition_allowed(JobState from, JobState to);
 
 struct JobSpec {
@@ -228,6 +229,9 @@ struct StoreOptions {
   std::uint64_t jitter_seed = 0;         // 0 = random
   int busy_timeout_ms = 10000;
   bool synchronous_full = true;          // FULL: every commit durable (docs/store.md)
+  // Tests only: called at named points inside transactions ("complete.after_job_update",
+  // "complete.after_copies", ...); throwing from it aborts and rolls back the transaction.
+  std::function<void(const std::string& point)> fault_injection;
 };
 
 class Store {
@@ -292,7 +296,8 @@ class Store {
                         bool retryable = true) = 0;
   // running -> available without spending the attempt (graceful shutdown). LeaseLost if not held.
   virtual void release(std::int64_t job_id, const std::string& worker_id) = 0;
-  // Any non-final state -> cancelled. Returns false if the job is completed (or already cancelled).
+  // available/retryable/running -> cancelled. Returns false for any other state. A running job's
+  // worker finds out at its next heartbeat/complete/fail (LeaseLost) and must drop its results.
   virtual bool cancel(std::int64_t job_id, const std::string& actor = "cli") = 0;
   // retryable/discarded/cancelled -> available now; grants one more attempt if none are left.
   virtual bool retry(std::int64_t job_id, const std::string& actor = "cli") = 0;

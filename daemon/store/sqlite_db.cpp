@@ -1,0 +1,110 @@
+#include "store/sqlite_db.h"
+
+namespace mm::store::sql {
+namespace {
+[[noreturn]] void fail(sqlite3* db, const std::string& what) {
+  throw StoreError(what + ": " + (db ? sqlite3_errmsg(db) : "out of memory"));
+}
+}  // namespace
+
+Db::Db(const std::string& path, int busy_timeout_ms) : path_(path) {
+  int rc = sqlite3_open_v2(path.c_str(), &db_,
+                           SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
+  if (rc != SQLITE_OK) {
+    std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
+    sqlite3_close_v2(db_);
+    db_ = nullptr;
+    throw StoreError("cannot open database " + path + ": " + msg);
+  }
+  sqlite3_extended_result_codes(db_, 1);
+  sqlite3_busy_timeout(db_, busy_timeout_ms);
+}
+
+Db::~Db() {
+  if (db_) sqlite3_close_v2(db_);
+}
+
+void Db::exec(const std::string& sql, const char* what) {
+  char* err = nullptr;
+  if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
+    std::string msg = err ? err : sqlite3_errmsg(db_);
+    sqlite3_free(err);
+    throw StoreError(std::string(what) + ": " + msg);
+  }
+}
+
+Stmt::Stmt(Db& db, const char* sql) : db_(db), sql_(sql) {
+  if (sqlite3_prepare_v2(db.get(), sql, -1, &st_, nullptr) != SQLITE_OK)
+    fail(db.get(), "preparing statement");
+}
+Stmt::~Stmt() { sqlite3_finalize(st_); }
+
+Stmt& Stmt::bind(int i, std::int64_t v) {
+  if (sqlite3_bind_int64(st_, i, v) != SQLITE_OK) fail(db_.get(), "bind");
+  return *this;
+}
+Stmt& Stmt::bind(int i, double v) {
+  if (sqlite3_bind_double(st_, i, v) != SQLITE_OK) fail(db_.get(), "bind");
+  return *this;
+}
+Stmt& Stmt::bind(int i, const std::string& v) {
+  if (sqlite3_bind_text(st_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT) != SQLITE_OK)
+    fail(db_.get(), "bind");
+  return *this;
+}
+Stmt& Stmt::bind(int i, const std::vector<std::uint8_t>& v) {
+  if (sqlite3_bind_blob(st_, i, v.empty() ? "" : static_cast<const void*>(v.data()),
+                        static_cast<int>(v.size()), SQLITE_TRANSIENT) != SQLITE_OK)
+    fail(db_.get(), "bind");
+  return *this;
+}
+Stmt& Stmt::bind_null(int i) {
+  if (sqlite3_bind_null(st_, i) != SQLITE_OK) fail(db_.get(), "bind");
+  return *this;
+}
+
+bool Stmt::step() {
+  int rc = sqlite3_step(st_);
+  if (rc == SQLITE_ROW) return true;
+  if (rc == SQLITE_DONE) return false;
+  fail(db_.get(), "database statement failed");
+}
+void Stmt::run() {
+  while (step()) {
+  }
+}
+int Stmt::changes() const { return sqlite3_changes(db_.get()); }
+
+bool Stmt::is_null(int c) const { return sqlite3_column_type(st_, c) == SQLITE_NULL; }
+std::int64_t Stmt::i64(int c) const { return sqlite3_column_int64(st_, c); }
+double Stmt::f64(int c) const { return sqlite3_column_double(st_, c); }
+std::string Stmt::text(int c) const {
+  auto p = reinterpret_cast<const char*>(sqlite3_column_text(st_, c));
+  return p ? std::string(p, static_cast<std::size_t>(sqlite3_column_bytes(st_, c))) : std::string();
+}
+std::vector<std::uint8_t> Stmt::blob(int c) const {
+  auto p = static_cast<const std::uint8_t*>(sqlite3_column_blob(st_, c));
+  int n = sqlite3_column_bytes(st_, c);
+  return p ? std::vector<std::uint8_t>(p, p + n) : std::vector<std::uint8_t>();
+}
+std::optional<std::int64_t> Stmt::opt_i64(int c) const {
+  if (is_null(c)) return std::nullopt;
+  return i64(c);
+}
+std::optional<double> Stmt::opt_f64(int c) const {
+  if (is_null(c)) return std::nullopt;
+  return f64(c);
+}
+
+Tx::Tx(Db& db, bool immediate) : db_(db) {
+  db_.exec(immediate ? "BEGIN IMMEDIATE" : "BEGIN", "begin transaction");
+}
+Tx::~Tx() {
+  if (!done_) sqlite3_exec(db_.get(), "ROLLBACK", nullptr, nullptr, nullptr);
+}
+void Tx::commit() {
+  db_.exec("COMMIT", "commit");
+  done_ = true;
+}
+
+}  // namespace mm::store::sql

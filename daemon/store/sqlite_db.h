@@ -1,0 +1,78 @@
+// Thin RAII over the SQLite C API for the store's own use (not part of the Store interface).
+#pragma once
+#include <sqlite3.h>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "store/store.h"
+
+namespace mm::store::sql {
+
+class Db {
+ public:
+  Db(const std::string& path, int busy_timeout_ms);
+  ~Db();
+  Db(const Db&) = delete;
+  Db& operator=(const Db&) = delete;
+  sqlite3* get() const { return db_; }
+  void exec(const std::string& sql, const char* what);  // StoreError naming `what`
+  std::string path() const { return path_; }
+
+ private:
+  sqlite3* db_ = nullptr;
+  std::string path_;
+};
+
+class Stmt {
+ public:
+  Stmt(Db& db, const char* sql);
+  ~Stmt();
+  Stmt(const Stmt&) = delete;
+  Stmt& operator=(const Stmt&) = delete;
+
+  Stmt& bind(int i, std::int64_t v);
+  Stmt& bind(int i, int v) { return bind(i, static_cast<std::int64_t>(v)); }
+  Stmt& bind(int i, double v);
+  Stmt& bind(int i, const std::string& v);
+  Stmt& bind(int i, const char* v) { return bind(i, std::string(v)); }
+  Stmt& bind(int i, const std::vector<std::uint8_t>& v);
+  Stmt& bind_null(int i);
+  template <class T>
+  Stmt& bind(int i, const std::optional<T>& v) {
+    return v ? bind(i, *v) : bind_null(i);
+  }
+
+  bool step();      // true: a row is ready; false: done. StoreError on failure.
+  void run();       // step to completion
+  int changes() const;
+
+  bool is_null(int col) const;
+  std::int64_t i64(int col) const;
+  double f64(int col) const;
+  std::string text(int col) const;
+  std::vector<std::uint8_t> blob(int col) const;
+  std::optional<std::int64_t> opt_i64(int col) const;
+  std::optional<double> opt_f64(int col) const;
+
+ private:
+  Db& db_;
+  sqlite3_stmt* st_ = nullptr;
+  std::string sql_;
+};
+
+// BEGIN IMMEDIATE ... COMMIT; rolls back when destroyed without commit().
+class Tx {
+ public:
+  explicit Tx(Db& db, bool immediate = true);
+  ~Tx();
+  void commit();
+
+ private:
+  Db& db_;
+  bool done_ = false;
+};
+
+}  // namespace mm::store::sql

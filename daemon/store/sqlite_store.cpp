@@ -1,0 +1,811 @@
+// SQLite implementation of the Store. Every public method takes the object's mutex and, when it
+// changes anything, runs in one BEGIN IMMEDIATE transaction: the write lock is taken up front, so
+// two connections never both read "available" and then both write "running".
+#include <sodium.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <regex>
+
+#include "store/migrations.h"
+#include "store/sqlite_db.h"
+#include "store/store.h"
+
+namespace mm::store {
+
+Millis system_clock_millis() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+const char* to_string(JobState s) {
+  switch (s) {
+    case JobState::available: return "available";
+    case JobState::running: return "running";
+    case JobState::completed: return "completed";
+    case JobState::retryable: return "retryable";
+    case JobState::discarded: return "discarded";
+    case JobState::cancelled: return "cancelled";
+  }
+  return "?";
+}
+
+JobState job_state_from_string(const std::string& s) {
+  for (JobState j : {JobState::available, JobState::running, JobState::completed,
+                     JobState::retryable, JobState::discarded, JobState::cancelled})
+    if (s == to_string(j)) return j;
+  throw StoreError("unknown job state '" + s.substr(0, 40) + "'");
+}
+
+bool job_transition_allowed(JobState from, JobState to) {
+  using S = JobState;
+  switch (from) {
+    case S::available: return to == S::running || to == S::cancelled;
+    case S::retryable: return to == S::running || to == S::available || to == S::cancelled;
+    case S::running:
+      return to == S::completed || to == S::retryable || to == S::discarded || to == S::available ||
+             to == S::cancelled;
+    case S::discarded:
+    case S::cancelled: return to == S::available;
+    case S::completed: return false;
+  }
+  return false;
+}
+
+namespace {
+
+using nlohmann::json;
+using sql::Db;
+using sql::Stmt;
+using sql::Tx;
+
+constexpr const char* kJobCols =
+    "id, kind, payload_json, state, priority, attempt, max_attempts, "
+    "COALESCE(idempotency_key, ''), created_at, scheduled_at, attempted_at, finished_at, "
+    "worker_id, lease_until, errors_json, result_json";
+
+Job read_job(const Stmt& s) {
+  Job j;
+  j.id = s.i64(0);
+  j.kind = s.text(1);
+  j.payload_json = s.text(2);
+  j.state = job_state_from_string(s.text(3));
+  j.priority = static_cast<int>(s.i64(4));
+  j.attempt = static_cast<int>(s.i64(5));
+  j.max_attempts = static_cast<int>(s.i64(6));
+  j.idempotency_key = s.text(7);
+  j.created_at = s.i64(8);
+  j.scheduled_at = s.i64(9);
+  j.attempted_at = s.opt_i64(10);
+  j.finished_at = s.opt_i64(11);
+  j.worker_id = s.text(12);
+  j.lease_until = s.opt_i64(13);
+  json errs = json::parse(s.text(14), nullptr, false);
+  if (errs.is_array())
+    for (const auto& e : errs)
+      j.errors.push_back({e.value("attempt", 0), e.value("at", Millis{0}), e.value("error", std::string())});
+  j.result_json = s.text(15);
+  return j;
+}
+
+constexpr const char* kCustomerCols = "id, name, current_key_version, created_at";
+Customer read_customer(const Stmt& s) {
+  return {s.i64(0), s.text(1), static_cast<int>(s.i64(2)), s.i64(3)};
+}
+
+constexpr const char* kAssetCols = "id, sha256, size, name, format, created_at";
+Asset read_asset(const Stmt& s) {
+  return {s.i64(0), s.text(1), static_cast<std::uint64_t>(s.i64(2)), s.text(3), s.text(4), s.i64(5)};
+}
+
+constexpr const char* kPolyCols =
+    "id, asset_id, params_key, polyhedron_blob, basis_blob, meta_json, created_at";
+Polyhedron read_poly(const Stmt& s) {
+  return {s.i64(0), s.i64(1), s.text(2), s.text(3), s.text(4), s.text(5), s.i64(6)};
+}
+
+constexpr const char* kCopyCols =
+    "id, asset_id, customer_id, key_version, idempotency_key, nonce, payload_hex, params_json, "
+    "outputs_json, polyhedron_id, job_id, created_at";
+IssuedCopy read_copy(const Stmt& s) {
+  IssuedCopy c;
+  c.id = s.i64(0);
+  c.asset_id = s.i64(1);
+  c.customer_id = s.i64(2);
+  c.key_version = static_cast<int>(s.i64(3));
+  c.idempotency_key = s.text(4);
+  c.nonce = s.blob(5);
+  c.payload_hex = s.text(6);
+  c.params_json = s.text(7);
+  c.outputs_json = s.text(8);
+  c.polyhedron_id = s.opt_i64(9);
+  c.job_id = s.opt_i64(10);
+  c.created_at = s.i64(11);
+  return c;
+}
+
+constexpr const char* kDetectionCols =
+    "id, job_id, suspect_sha256, suspect_name, verdict, asset_id, copy_id, customer_id, "
+    "correlation, p_value, decoded_payload_hex, details_json, created_at";
+Detection read_detection(const Stmt& s) {
+  Detection d;
+  d.id = s.i64(0);
+  d.job_id = s.opt_i64(1);
+  d.suspect_sha256 = s.text(2);
+  d.suspect_name = s.text(3);
+  d.verdict = s.text(4);
+  d.asset_id = s.opt_i64(5);
+  d.copy_id = s.opt_i64(6);
+  d.customer_id = s.opt_i64(7);
+  d.correlation = s.opt_f64(8);
+  d.p_value = s.opt_f64(9);
+  d.decoded_payload_hex = s.text(10);
+  d.details_json = s.text(11);
+  d.created_at = s.i64(12);
+  return d;
+}
+
+std::string sel(const char* cols, const char* rest) {
+  return std::string("SELECT ") + cols + " " + rest;
+}
+
+void require_json(const std::string& text, const char* what) {
+  if (!json::accept(text)) throw StoreError(std::string(what) + " is not valid JSON");
+}
+
+std::string clip(const std::string& s, std::size_t n) { return s.size() <= n ? s : s.substr(0, n) + "..."; }
+
+bool valid_customer_name(const std::string& n) {
+  static const std::regex re("[A-Za-z0-9._-]{1,64}");
+  return std::regex_match(n, re) && n != "." && n != "..";
+}
+
+std::string format_from_name(const std::string& name) {
+  auto slash = name.find_last_of('/');
+  std::string base = slash == std::string::npos ? name : name.substr(slash + 1);
+  auto dot = base.find_last_of('.');
+  if (dot == std::string::npos || dot + 1 == base.size()) return "";
+  std::string ext = base.substr(dot + 1);
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext.size() <= 8 ? ext : "";
+}
+
+class SqliteStore final : public Store {
+ public:
+  explicit SqliteStore(StoreOptions o)
+      : opt_(std::move(o)), db_(opt_.db_path, opt_.busy_timeout_ms), blobs_(blob_dir(opt_)) {
+    if (!opt_.clock) opt_.clock = system_clock_millis;
+    std::uint64_t seed = opt_.jitter_seed;
+    if (seed == 0) seed = (static_cast<std::uint64_t>(randombytes_random()) << 32) | randombytes_random();
+    rng_.seed(seed);
+    // WAL: readers never block the writer and a commit is one sequential append. synchronous=FULL
+    // fsyncs the WAL on every commit, so a completed job stays completed across power loss, not
+    // only across process crashes (NORMAL would be enough for the latter); see docs/store.md.
+    db_.exec("PRAGMA journal_mode=WAL", "enabling WAL");
+    db_.exec(opt_.synchronous_full ? "PRAGMA synchronous=FULL" : "PRAGMA synchronous=NORMAL",
+             "setting synchronous");
+    db_.exec("PRAGMA foreign_keys=ON", "enabling foreign keys");
+    migrate();
+  }
+
+  int schema_version() override {
+    std::lock_guard<std::mutex> l(m_);
+    return current_version();
+  }
+  BlobStore& blobs() override { return blobs_; }
+  Millis now() override { return opt_.clock(); }
+
+  // ------------------------------------------------------------ customers and keys
+  Customer add_customer(const std::string& name, const std::string& actor) override {
+    if (!valid_customer_name(name))
+      throw StoreError("invalid customer name '" + clip(name, 64) +
+                       "': use 1-64 letters, digits, '.', '_' or '-'");
+    const keys::SecretKey& master = need_master();
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    Millis t = now();
+    {
+      Stmt q(db_, "SELECT 1 FROM customers WHERE name = ?");
+      if (q.bind(1, name).step()) throw StoreError("customer '" + name + "' already exists");
+    }
+    Stmt ins(db_, "INSERT INTO customers(name, current_key_version, created_at) VALUES(?, 1, ?) RETURNING id");
+    ins.bind(1, name).bind(2, t).step();
+    std::int64_t id = ins.i64(0);
+    insert_key(master, id, 1, t);
+    insert_audit({actor, "customer.add", "customer:" + std::to_string(id),
+                  json{{"name", name}, {"key_version", 1}}.dump()});
+    tx.commit();
+    return {id, name, 1, t};
+  }
+
+  std::vector<Customer> list_customers() override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, sel(kCustomerCols, "FROM customers ORDER BY id").c_str());
+    std::vector<Customer> out;
+    while (q.step()) out.push_back(read_customer(q));
+    return out;
+  }
+
+  std::optional<Customer> find_customer(const std::string& name) override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, sel(kCustomerCols, "FROM customers WHERE name = ?").c_str());
+    if (!q.bind(1, name).step()) return std::nullopt;
+    return read_customer(q);
+  }
+
+  std::optional<Customer> get_customer(std::int64_t id) override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, sel(kCustomerCols, "FROM customers WHERE id = ?").c_str());
+    if (!q.bind(1, id).step()) return std::nullopt;
+    return read_customer(q);
+  }
+
+  int rotate_key(std::int64_t customer_id, const std::string& actor) override {
+    const keys::SecretKey& master = need_master();
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    Stmt q(db_, "SELECT current_key_version FROM customers WHERE id = ?");
+    if (!q.bind(1, customer_id).step()) throw StoreError("no customer with id " + std::to_string(customer_id));
+    int v = static_cast<int>(q.i64(0)) + 1;
+    Millis t = now();
+    insert_key(master, customer_id, v, t);
+    Stmt u(db_, "UPDATE customers SET current_key_version = ? WHERE id = ?");
+    u.bind(1, v).bind(2, customer_id).run();
+    insert_audit({actor, "key.rotate", "customer:" + std::to_string(customer_id),
+                  json{{"key_version", v}}.dump()});
+    tx.commit();
+    return v;
+  }
+
+  CustomerKey customer_key(std::int64_t customer_id, int version) override {
+    const keys::SecretKey& master = need_master();
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_,
+           "SELECT k.version, k.nonce, k.ciphertext FROM customer_keys k JOIN customers c "
+           "ON c.id = k.customer_id WHERE k.customer_id = ?1 "
+           "AND k.version = CASE WHEN ?2 = 0 THEN c.current_key_version ELSE ?2 END");
+    if (!q.bind(1, customer_id).bind(2, version).step())
+      throw keys::KeyError("no key version " + (version == 0 ? std::string("(current)") : std::to_string(version)) +
+                           " for customer " + std::to_string(customer_id));
+    int v = static_cast<int>(q.i64(0));
+    keys::SealedKey sealed{q.blob(1), q.blob(2)};
+    return {customer_id, v, keys::open_customer_key(master, sealed, customer_id, v)};
+  }
+
+  std::vector<KeyInfo> list_keys(std::int64_t customer_id) override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, "SELECT customer_id, version, created_at FROM customer_keys WHERE customer_id = ? ORDER BY version");
+    q.bind(1, customer_id);
+    std::vector<KeyInfo> out;
+    while (q.step()) out.push_back({q.i64(0), static_cast<int>(q.i64(1)), q.i64(2)});
+    return out;
+  }
+
+  // ------------------------------------------------------------ assets and polyhedra
+  Asset put_asset_file(const std::string& path, const std::string& name) override {
+    std::string h = blobs_.put_file(path);  // durable before any row points at it
+    return upsert_asset(h, blobs_.size(h), name);
+  }
+
+  Asset put_asset_bytes(const std::vector<std::uint8_t>& bytes, const std::string& name) override {
+    std::string h = blobs_.put(bytes);
+    return upsert_asset(h, bytes.size(), name);
+  }
+
+  std::optional<Asset> get_asset(std::int64_t id) override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, sel(kAssetCols, "FROM assets WHERE id = ?").c_str());
+    if (!q.bind(1, id).step()) return std::nullopt;
+    return read_asset(q);
+  }
+
+  std::optional<Asset> find_asset(const std::string& sha256) override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, sel(kAssetCols, "FROM assets WHERE sha256 = ?").c_str());
+    if (!q.bind(1, sha256).step()) return std::nullopt;
+    return read_asset(q);
+  }
+
+  std::vector<Asset> list_assets(int limit) override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, sel(kAssetCols, "FROM assets ORDER BY id DESC LIMIT ?").c_str());
+    q.bind(1, limit);
+    std::vector<Asset> out;
+    while (q.step()) out.push_back(read_asset(q));
+    return out;
+  }
+
+  Polyhedron put_polyhedron(const Polyhedron& p) override {
+    if (!blobs_.contains(p.polyhedron_blob))
+      throw StoreError("polyhedron blob " + clip(p.polyhedron_blob, 64) + " is not in the blob store");
+    if (!p.basis_blob.empty() && !blobs_.contains(p.basis_blob))
+      throw StoreError("basis blob " + clip(p.basis_blob, 64) + " is not in the blob store");
+    require_json(p.meta_json, "polyhedron meta_json");
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    Stmt ins(db_,
+             "INSERT INTO polyhedra(asset_id, params_key, polyhedron_blob, basis_blob, meta_json, created_at) "
+             "VALUES(?,?,?,?,?,?) ON CONFLICT(asset_id, params_key) DO NOTHING");
+    ins.bind(1, p.asset_id).bind(2, p.params_key).bind(3, p.polyhedron_blob).bind(4, p.basis_blob)
+        .bind(5, p.meta_json).bind(6, now()).run();
+    Stmt q(db_, sel(kPolyCols, "FROM polyhedra WHERE asset_id = ? AND params_key = ?").c_str());
+    q.bind(1, p.asset_id).bind(2, p.params_key).step();
+    Polyhedron out = read_poly(q);
+    tx.commit();
+    return out;
+  }
+
+  std::optional<Polyhedron> find_polyhedron(std::int64_t asset_id, const std::string& params_key) override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, sel(kPolyCols, "FROM polyhedra WHERE asset_id = ? AND params_key = ?").c_str());
+    if (!q.bind(1, asset_id).bind(2, params_key).step()) return std::nullopt;
+    return read_poly(q);
+  }
+
+  // ------------------------------------------------------------ copies and detections
+  IssuedCopy issue_copy(const NewCopy& c) override {
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    bool existed = false;
+    std::int64_t id = insert_copy(c, std::nullopt, "cli", existed);
+    tx.commit();
+    return *copy_by_id(id);
+  }
+
+  std::optional<IssuedCopy> find_copy(std::int64_t asset_id, std::int64_t customer_id, int key_version,
+                                      const std::string& idempotency_key) override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, sel(kCopyCols, "FROM issued_copies WHERE asset_id = ? AND customer_id = ? AND "
+                               "key_version = ? AND idempotency_key = ?").c_str());
+    if (!q.bind(1, asset_id).bind(2, customer_id).bind(3, key_version).bind(4, idempotency_key).step())
+      return std::nullopt;
+    return read_copy(q);
+  }
+
+  std::optional<IssuedCopy> get_copy(std::int64_t id) override {
+    std::lock_guard<std::mutex> l(m_);
+    return copy_by_id(id);
+  }
+
+  std::vector<IssuedCopy> list_copies(std::optional<std::int64_t> asset_id, int limit) override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, sel(kCopyCols, "FROM issued_copies WHERE (?1 IS NULL OR asset_id = ?1) "
+                               "ORDER BY id DESC LIMIT ?2").c_str());
+    q.bind(1, asset_id).bind(2, limit);
+    std::vector<IssuedCopy> out;
+    while (q.step()) out.push_back(read_copy(q));
+    return out;
+  }
+
+  Detection record_detection(const NewDetection& d) override {
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    std::int64_t id = insert_detection(d, std::nullopt, "cli");
+    tx.commit();
+    Stmt q(db_, sel(kDetectionCols, "FROM detections WHERE id = ?").c_str());
+    q.bind(1, id).step();
+    return read_detection(q);
+  }
+
+  std::vector<Detection> list_detections(int limit) override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, sel(kDetectionCols, "FROM detections ORDER BY id DESC LIMIT ?").c_str());
+    q.bind(1, limit);
+    std::vector<Detection> out;
+    while (q.step()) out.push_back(read_detection(q));
+    return out;
+  }
+
+  // ------------------------------------------------------------ audit
+  std::int64_t append_audit(const NewAudit& a) override {
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    std::int64_t id = insert_audit(a);
+    tx.commit();
+    return id;
+  }
+
+  std::vector<AuditEntry> list_audit(int limit) override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, "SELECT id, at, actor, action, subject, details_json FROM audit_log ORDER BY id DESC LIMIT ?");
+    q.bind(1, limit);
+    std::vector<AuditEntry> out;
+    while (q.step()) {
+      AuditEntry e;
+      e.id = q.i64(0);
+      e.at = q.i64(1);
+      e.actor = q.text(2);
+      e.action = q.text(3);
+      e.subject = q.text(4);
+      e.details_json = q.text(5);
+      out.push_back(std::move(e));
+    }
+    return out;
+  }
+
+  // ------------------------------------------------------------ queue
+  EnqueueResult enqueue(const JobSpec& spec, const std::string& actor) override {
+    if (spec.kind.empty()) throw StoreError("enqueue: job kind is empty");
+    if (spec.max_attempts < 1) throw StoreError("enqueue: max_attempts must be at least 1");
+    require_json(spec.payload_json, "job payload");
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    if (!spec.idempotency_key.empty()) {
+      Stmt q(db_, sel(kJobCols, "FROM jobs WHERE idempotency_key = ?").c_str());
+      if (q.bind(1, spec.idempotency_key).step()) return {read_job(q), false};
+    }
+    Millis t = now();
+    Stmt ins(db_,
+             "INSERT INTO jobs(kind, payload_json, priority, max_attempts, idempotency_key, created_at, "
+             "scheduled_at) VALUES(?,?,?,?,?,?,?) RETURNING id");
+    ins.bind(1, spec.kind).bind(2, spec.payload_json).bind(3, spec.priority).bind(4, spec.max_attempts);
+    if (spec.idempotency_key.empty()) ins.bind_null(5); else ins.bind(5, spec.idempotency_key);
+    ins.bind(6, t).bind(7, spec.scheduled_at.value_or(t)).step();
+    std::int64_t id = ins.i64(0);
+    insert_audit({actor, "job.enqueue", "job:" + std::to_string(id), json{{"kind", spec.kind}}.dump()});
+    Job j = job_by_id(id).value();
+    tx.commit();
+    return {std::move(j), true};
+  }
+
+  std::optional<Job> claim(const std::string& worker_id, Millis lease,
+                           const std::vector<std::string>& kinds) override {
+    if (worker_id.empty()) throw StoreError("claim: worker id is empty");
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    Millis t = now();
+    reap(t);
+    static const std::string q = std::string(
+        "UPDATE jobs SET state = 'running', attempt = attempt + 1, attempted_at = ?1, worker_id = ?2, "
+        "lease_until = ?3 WHERE id = (SELECT id FROM jobs WHERE state IN ('available', 'retryable') "
+        "AND scheduled_at <= ?1 AND (?4 IS NULL OR kind IN (SELECT value FROM json_each(?4))) "
+        "ORDER BY priority DESC, scheduled_at, id LIMIT 1) RETURNING ") + kJobCols;
+    Stmt s(db_, q.c_str());
+    s.bind(1, t).bind(2, worker_id).bind(3, t + lease);
+    if (kinds.empty()) s.bind_null(4); else s.bind(4, json(kinds).dump());
+    std::optional<Job> j;
+    if (s.step()) j = read_job(s);
+    s.run();
+    tx.commit();
+    return j;
+  }
+
+  void heartbeat(std::int64_t job_id, const std::string& worker_id, Millis lease) override {
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    Stmt u(db_, "UPDATE jobs SET lease_until = ? WHERE id = ? AND state = 'running' AND worker_id = ?");
+    u.bind(1, now() + lease).bind(2, job_id).bind(3, worker_id).run();
+    if (u.changes() == 0) throw lease_lost(job_id, worker_id);
+    tx.commit();
+  }
+
+  CompleteResult complete(std::int64_t job_id, const std::string& worker_id, const JobRecords& r) override {
+    require_json(r.result_json, "job result");
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    Millis t = now();
+    Stmt u(db_,
+           "UPDATE jobs SET state = 'completed', finished_at = ?, lease_until = NULL, result_json = ? "
+           "WHERE id = ? AND state = 'running' AND worker_id = ?");
+    u.bind(1, t).bind(2, r.result_json).bind(3, job_id).bind(4, worker_id).run();
+    if (u.changes() == 0) throw lease_lost(job_id, worker_id);
+    fault("complete.after_job_update");
+    CompleteResult out;
+    for (const NewCopy& c : r.copies) {
+      bool existed = false;
+      out.copy_ids.push_back(insert_copy(c, job_id, worker_id, existed));
+      if (existed) ++out.copies_already_existed;
+    }
+    fault("complete.after_copies");
+    for (const NewDetection& d : r.detections) out.detection_ids.push_back(insert_detection(d, job_id, worker_id));
+    fault("complete.after_detections");
+    for (const NewAudit& a : r.audit) insert_audit(a);
+    insert_audit({worker_id, "job.complete", "job:" + std::to_string(job_id), "{}"});
+    fault("complete.before_commit");
+    tx.commit();
+    return out;
+  }
+
+  JobState fail(std::int64_t job_id, const std::string& worker_id, const std::string& error,
+                bool retryable) override {
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    Stmt q(db_, "SELECT attempt, max_attempts FROM jobs WHERE id = ? AND state = 'running' AND worker_id = ?");
+    if (!q.bind(1, job_id).bind(2, worker_id).step()) throw lease_lost(job_id, worker_id);
+    int attempt = static_cast<int>(q.i64(0));
+    int max_attempts = static_cast<int>(q.i64(1));
+    Millis t = now();
+    JobState next = retryable && attempt < max_attempts ? JobState::retryable : JobState::discarded;
+    Stmt u(db_,
+           "UPDATE jobs SET state = ?1, scheduled_at = ?2, finished_at = ?3, lease_until = NULL, "
+           "errors_json = json_insert(errors_json, '$[#]', json_object('attempt', attempt, 'at', ?4, 'error', ?5)) "
+           "WHERE id = ?6");
+    u.bind(1, to_string(next));
+    if (next == JobState::retryable) u.bind(2, t + backoff(attempt)).bind_null(3);
+    else u.bind(2, t).bind(3, t);
+    u.bind(4, t).bind(5, clip(error, 4000)).bind(6, job_id).run();
+    if (next == JobState::discarded)
+      insert_audit({worker_id, "job.discard", "job:" + std::to_string(job_id),
+                    json{{"attempt", attempt}}.dump()});
+    tx.commit();
+    return next;
+  }
+
+  void release(std::int64_t job_id, const std::string& worker_id) override {
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    Stmt u(db_,
+           "UPDATE jobs SET state = 'available', attempt = MAX(attempt - 1, 0), lease_until = NULL "
+           "WHERE id = ? AND state = 'running' AND worker_id = ?");
+    u.bind(1, job_id).bind(2, worker_id).run();
+    if (u.changes() == 0) throw lease_lost(job_id, worker_id);
+    tx.commit();
+  }
+
+  bool cancel(std::int64_t job_id, const std::string& actor) override {
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    Stmt u(db_,
+           "UPDATE jobs SET state = 'cancelled', finished_at = ?, lease_until = NULL "
+           "WHERE id = ? AND state IN ('available', 'retryable', 'running')");
+    u.bind(1, now()).bind(2, job_id).run();
+    if (u.changes() == 0) return false;
+    insert_audit({actor, "job.cancel", "job:" + std::to_string(job_id), "{}"});
+    tx.commit();
+    return true;
+  }
+
+  bool retry(std::int64_t job_id, const std::string& actor) override {
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    Stmt u(db_,
+           "UPDATE jobs SET state = 'available', scheduled_at = ?, finished_at = NULL, "
+           "max_attempts = MAX(max_attempts, attempt + 1) "
+           "WHERE id = ? AND state IN ('retryable', 'discarded', 'cancelled')");
+    u.bind(1, now()).bind(2, job_id).run();
+    if (u.changes() == 0) return false;
+    insert_audit({actor, "job.retry", "job:" + std::to_string(job_id), "{}"});
+    tx.commit();
+    return true;
+  }
+
+  int reap_expired_leases() override {
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    int n = reap(now());
+    tx.commit();
+    return n;
+  }
+
+  std::optional<Job> get_job(std::int64_t id) override {
+    std::lock_guard<std::mutex> l(m_);
+    return job_by_id(id);
+  }
+
+  std::vector<Job> list_jobs(const JobFilter& f) override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, sel(kJobCols, "FROM jobs WHERE (?1 IS NULL OR state = ?1) AND (?2 = '' OR kind = ?2) "
+                              "AND (?3 = 0 OR id < ?3) ORDER BY id DESC LIMIT ?4").c_str());
+    if (f.state) q.bind(1, to_string(*f.state)); else q.bind_null(1);
+    q.bind(2, f.kind).bind(3, f.before_id).bind(4, f.limit);
+    std::vector<Job> out;
+    while (q.step()) out.push_back(read_job(q));
+    return out;
+  }
+
+  QueueCounts counts() override {
+    std::lock_guard<std::mutex> l(m_);
+    QueueCounts c;
+    Stmt q(db_, "SELECT state, COUNT(*) FROM jobs GROUP BY state");
+    while (q.step()) {
+      std::int64_t n = q.i64(1);
+      switch (job_state_from_string(q.text(0))) {
+        case JobState::available: c.available = n; break;
+        case JobState::running: c.running = n; break;
+        case JobState::completed: c.completed = n; break;
+        case JobState::retryable: c.retryable = n; break;
+        case JobState::discarded: c.discarded = n; break;
+        case JobState::cancelled: c.cancelled = n; break;
+      }
+    }
+    return c;
+  }
+
+  std::optional<Millis> next_scheduled() override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, "SELECT MIN(scheduled_at) FROM jobs WHERE state IN ('available', 'retryable')");
+    q.step();
+    return q.opt_i64(0);
+  }
+
+  bool integrity_ok() override {
+    std::lock_guard<std::mutex> l(m_);
+    Stmt q(db_, "PRAGMA integrity_check");
+    return q.step() && q.text(0) == "ok" && !q.step();
+  }
+
+ private:
+  static std::string blob_dir(const StoreOptions& o) {
+    if (!o.blob_dir.empty()) return o.blob_dir;
+    auto slash = o.db_path.find_last_of('/');
+    return (slash == std::string::npos ? std::string(".") : o.db_path.substr(0, slash)) + "/blobs";
+  }
+
+  const keys::SecretKey& need_master() const {
+    if (!opt_.master_key)
+      throw keys::KeyError("no master key loaded: set MESHMARK_MASTER_KEY or create the home's "
+                           "master.key (meshmark init)");
+    return *opt_.master_key;
+  }
+
+  void fault(const char* point) {
+    if (opt_.fault_injection) opt_.fault_injection(point);
+  }
+
+  LeaseLost lease_lost(std::int64_t job_id, const std::string& worker_id) {
+    auto j = job_by_id(job_id);
+    std::string state = j ? to_string(j->state) : "missing";
+    return LeaseLost("job " + std::to_string(job_id) + " is no longer held by worker " +
+                     clip(worker_id, 80) + " (state " + state + (j && j->state == JobState::running ? ", worker " + j->worker_id : "") + ")");
+  }
+
+  Millis backoff(int attempt) {
+    const BackoffPolicy& b = opt_.backoff;
+    double d = static_cast<double>(b.base) * std::pow(2.0, std::max(0, attempt - 1));
+    d = std::min(d, static_cast<double>(b.max));
+    double j = b.jitter > 0 ? std::uniform_real_distribution<double>(0.0, b.jitter * d)(rng_) : 0.0;
+    return static_cast<Millis>(d + j);
+  }
+
+  int current_version() {
+    Stmt q(db_, "SELECT COALESCE(MAX(version), 0) FROM schema_version");
+    q.step();
+    return static_cast<int>(q.i64(0));
+  }
+
+  void migrate() {
+    {
+      Tx tx(db_);
+      db_.exec("CREATE TABLE IF NOT EXISTS schema_version (version INTEGER PRIMARY KEY, "
+               "name TEXT NOT NULL, applied_at INTEGER NOT NULL)",
+               "creating schema_version");
+      tx.commit();
+    }
+    const auto& ms = embedded_migrations();
+    int latest = ms.empty() ? 0 : ms.back().version;
+    for (const Migration& m : ms) {
+      Tx tx(db_);  // IMMEDIATE: two processes starting together apply each migration once
+      Stmt q(db_, "SELECT 1 FROM schema_version WHERE version = ?");
+      if (q.bind(1, m.version).step()) continue;
+      db_.exec(m.sql, (std::string("applying migration ") + m.name).c_str());
+      Stmt ins(db_, "INSERT INTO schema_version(version, name, applied_at) VALUES(?,?,?)");
+      ins.bind(1, m.version).bind(2, m.name).bind(3, now()).run();
+      tx.commit();
+    }
+    int v = current_version();
+    if (v > latest)
+      throw StoreError("database " + opt_.db_path + " has schema version " + std::to_string(v) +
+                       ", newer than this meshmark knows (" + std::to_string(latest) + "); upgrade meshmark");
+  }
+
+  void insert_key(const keys::SecretKey& master, std::int64_t customer_id, int version, Millis t) {
+    keys::SecretKey k = keys::SecretKey::random();
+    keys::SealedKey s = keys::seal_customer_key(master, k, customer_id, version);
+    Stmt ins(db_, "INSERT INTO customer_keys(customer_id, version, nonce, ciphertext, created_at) VALUES(?,?,?,?,?)");
+    ins.bind(1, customer_id).bind(2, version).bind(3, s.nonce).bind(4, s.ciphertext).bind(5, t).run();
+  }
+
+  std::int64_t insert_audit(const NewAudit& a) {
+    require_json(a.details_json, "audit details");
+    Stmt ins(db_, "INSERT INTO audit_log(at, actor, action, subject, details_json) VALUES(?,?,?,?,?) RETURNING id");
+    ins.bind(1, now()).bind(2, a.actor).bind(3, a.action).bind(4, a.subject).bind(5, a.details_json).step();
+    return ins.i64(0);
+  }
+
+  Asset upsert_asset(const std::string& sha, std::uint64_t size, const std::string& name) {
+    std::lock_guard<std::mutex> l(m_);
+    Tx tx(db_);
+    Stmt ins(db_,
+             "INSERT INTO assets(sha256, size, name, format, created_at) VALUES(?,?,?,?,?) "
+             "ON CONFLICT(sha256) DO NOTHING");
+    ins.bind(1, sha).bind(2, static_cast<std::int64_t>(size)).bind(3, name).bind(4, format_from_name(name))
+        .bind(5, now()).run();
+    bool created = ins.changes() > 0;
+    Stmt q(db_, sel(kAssetCols, "FROM assets WHERE sha256 = ?").c_str());
+    q.bind(1, sha).step();
+    Asset a = read_asset(q);
+    if (created)
+      insert_audit({"store", "asset.add", "asset:" + std::to_string(a.id), json{{"sha256", sha}, {"name", name}}.dump()});
+    tx.commit();
+    return a;
+  }
+
+  std::int64_t insert_copy(const NewCopy& c, std::optional<std::int64_t> job_id, const std::string& actor,
+                           bool& existed) {
+    require_json(c.params_json, "copy params_json");
+    require_json(c.outputs_json, "copy outputs_json");
+    Stmt ins(db_,
+             "INSERT INTO issued_copies(asset_id, customer_id, key_version, idempotency_key, nonce, "
+             "payload_hex, params_json, outputs_json, polyhedron_id, job_id, created_at) "
+             "VALUES(?,?,?,?,?,?,?,?,?,?,?) "
+             "ON CONFLICT(asset_id, customer_id, key_version, idempotency_key) DO NOTHING RETURNING id");
+    ins.bind(1, c.asset_id).bind(2, c.customer_id).bind(3, c.key_version).bind(4, c.idempotency_key)
+        .bind(5, c.nonce).bind(6, c.payload_hex).bind(7, c.params_json).bind(8, c.outputs_json)
+        .bind(9, c.polyhedron_id).bind(10, job_id).bind(11, now());
+    if (ins.step()) {
+      std::int64_t id = ins.i64(0);
+      ins.run();
+      existed = false;
+      insert_audit({actor, "copy.issue", "copy:" + std::to_string(id),
+                    json{{"asset_id", c.asset_id}, {"customer_id", c.customer_id},
+                         {"key_version", c.key_version}}.dump()});
+      return id;
+    }
+    existed = true;
+    Stmt q(db_, "SELECT id FROM issued_copies WHERE asset_id = ? AND customer_id = ? AND key_version = ? "
+                "AND idempotency_key = ?");
+    q.bind(1, c.asset_id).bind(2, c.customer_id).bind(3, c.key_version).bind(4, c.idempotency_key).step();
+    return q.i64(0);
+  }
+
+  std::int64_t insert_detection(const NewDetection& d, std::optional<std::int64_t> job_id, const std::string& actor) {
+    require_json(d.details_json, "detection details_json");
+    Stmt ins(db_,
+             "INSERT INTO detections(job_id, suspect_sha256, suspect_name, verdict, asset_id, copy_id, "
+             "customer_id, correlation, p_value, decoded_payload_hex, details_json, created_at) "
+             "VALUES(?,?,?,?,?,?,?,?,?,?,?,?) RETURNING id");
+    ins.bind(1, job_id).bind(2, d.suspect_sha256).bind(3, d.suspect_name).bind(4, d.verdict)
+        .bind(5, d.asset_id).bind(6, d.copy_id).bind(7, d.customer_id).bind(8, d.correlation)
+        .bind(9, d.p_value).bind(10, d.decoded_payload_hex).bind(11, d.details_json).bind(12, now()).step();
+    std::int64_t id = ins.i64(0);
+    ins.run();
+    insert_audit({actor, "detection.record", "detection:" + std::to_string(id),
+                  json{{"verdict", d.verdict}}.dump()});
+    return id;
+  }
+
+  int reap(Millis t) {
+    Stmt u(db_,
+           "UPDATE jobs SET "
+           "state = CASE WHEN attempt >= max_attempts THEN 'discarded' ELSE 'available' END, "
+           "finished_at = CASE WHEN attempt >= max_attempts THEN ?1 ELSE NULL END, "
+           "errors_json = json_insert(errors_json, '$[#]', json_object('attempt', attempt, 'at', ?1, "
+           "'error', 'lease expired: worker ' || worker_id || ' stopped heartbeating')), "
+           "lease_until = NULL "
+           "WHERE state = 'running' AND lease_until < ?1");
+    u.bind(1, t).run();
+    return u.changes();
+  }
+
+  std::optional<Job> job_by_id(std::int64_t id) {
+    Stmt q(db_, sel(kJobCols, "FROM jobs WHERE id = ?").c_str());
+    if (!q.bind(1, id).step()) return std::nullopt;
+    return read_job(q);
+  }
+
+  std::optional<IssuedCopy> copy_by_id(std::int64_t id) {
+    Stmt q(db_, sel(kCopyCols, "FROM issued_copies WHERE id = ?").c_str());
+    if (!q.bind(1, id).step()) return std::nullopt;
+    return read_copy(q);
+  }
+
+  StoreOptions opt_;
+  std::mutex m_;
+  Db db_;
+  FsBlobStore blobs_;
+  std::mt19937_64 rng_;
+};
+
+}  // namespace
+
+std::unique_ptr<Store> open_sqlite_store(StoreOptions options) {
+  if (options.db_path.empty()) throw StoreError("open store: no database path given");
+  return std::make_unique<SqliteStore>(std::move(options));
+}
+
+}  // namespace mm::store
