@@ -1,0 +1,248 @@
+#include "fitting/control_polyhedron.h"
+
+#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
+// QuadricT needs vector_traits from the mesh headers above.
+#include <OpenMesh/Core/Geometry/QuadricT.hh>
+#include <OpenMesh/Tools/Decimater/DecimaterT.hh>
+#include <OpenMesh/Tools/Decimater/ModBaseT.hh>
+#include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
+#include <algorithm>
+#include <cfloat>
+#include <set>
+#include <stdexcept>
+
+namespace mm {
+namespace {
+
+struct Traits : OpenMesh::DefaultTraits {
+  using Point = OpenMesh::Vec3d;
+  using Normal = OpenMesh::Vec3d;
+  VertexAttributes(OpenMesh::Attributes::Status);
+  EdgeAttributes(OpenMesh::Attributes::Status);
+  FaceAttributes(OpenMesh::Attributes::Status | OpenMesh::Attributes::Normal);
+};
+using OMesh = OpenMesh::TriMesh_ArrayKernelT<Traits>;
+using OpenMesh::Geometry::Quadricd;
+
+// Quadric error (Garland-Heckbert, area weighted face planes) plus, along sharp edges, planes
+// through the edge perpendicular to each adjacent face, so moving a crease vertex off a curved
+// crease costs as much as moving a surface vertex off the surface. It also keeps the crease
+// polylines alive: when a polyline reaches its minimum size its vertices get locked, and when a
+// collapse merges a crease edge with a plain one the survivor inherits the crease flag.
+template <class MeshT>
+class ModFeatureQuadricT : public OpenMesh::Decimater::ModBaseT<MeshT> {
+ public:
+  DECIMATING_MODULE(ModFeatureQuadricT, MeshT, FeatureQuadric);
+
+  explicit ModFeatureQuadricT(MeshT& mesh) : Base(mesh, false) {
+    mesh.add_property(quadric_);
+    mesh.add_property(chain_);
+  }
+  ~ModFeatureQuadricT() override {
+    Base::mesh().remove_property(quadric_);
+    Base::mesh().remove_property(chain_);
+  }
+
+  // chain_of[v] = polyline id of a non-corner crease vertex, -1 otherwise; chain_min[id] = floor.
+  void set_chains(const std::vector<int>& chain_of, const std::vector<int>& chain_min) {
+    auto& m = Base::mesh();
+    for (auto v : m.vertices()) m.property(chain_, v) = chain_of[v.idx()];
+    chain_min_ = chain_min;
+    chain_count_.assign(chain_min.size(), 0);
+    members_.assign(chain_min.size(), {});
+    for (auto v : m.vertices())
+      if (chain_of[v.idx()] >= 0) {
+        ++chain_count_[chain_of[v.idx()]];
+        members_[chain_of[v.idx()]].push_back(v);
+      }
+    for (size_t c = 0; c < chain_min_.size(); ++c) lock_if_at_floor(static_cast<int>(c));
+  }
+
+  void initialize() override {
+    auto& m = Base::mesh();
+    for (auto v : m.vertices()) m.property(quadric_, v).clear();
+    for (auto f : m.faces()) {
+      auto h = m.halfedge_handle(f);
+      auto v0 = m.to_vertex_handle(h), v1 = m.to_vertex_handle(m.next_halfedge_handle(h)),
+           v2 = m.from_vertex_handle(h);
+      OpenMesh::Vec3d p0 = m.point(v0), p1 = m.point(v1), p2 = m.point(v2);
+      OpenMesh::Vec3d n = (p1 - p0) % (p2 - p0);
+      double area = n.norm();
+      if (area <= DBL_MIN) continue;
+      n /= area;
+      Quadricd q(n[0], n[1], n[2], -(p0 | n));
+      q *= 0.5 * area;
+      m.property(quadric_, v0) += q;
+      m.property(quadric_, v1) += q;
+      m.property(quadric_, v2) += q;
+    }
+    for (auto e : m.edges()) {
+      if (!m.status(e).feature()) continue;
+      for (int side = 0; side < 2; ++side) {
+        auto h = m.halfedge_handle(e, side);
+        if (m.is_boundary(h)) continue;
+        auto a = m.from_vertex_handle(h), b = m.to_vertex_handle(h);
+        OpenMesh::Vec3d d = m.point(b) - m.point(a);
+        OpenMesh::Vec3d n = d % m.calc_face_normal(m.face_handle(h));
+        double len = n.norm();
+        if (len <= DBL_MIN) continue;
+        n /= len;
+        Quadricd q(n[0], n[1], n[2], -(m.point(a) | n));
+        q *= d.sqrnorm();
+        m.property(quadric_, a) += q;
+        m.property(quadric_, b) += q;
+      }
+    }
+  }
+
+  float collapse_priority(const CollapseInfo& ci) override {
+    auto& m = Base::mesh();
+    Quadricd q = m.property(quadric_, ci.v0);
+    q += m.property(quadric_, ci.v1);
+    double err = q(ci.p1);
+    return static_cast<float>(std::max(err, 0.0));
+  }
+
+  void preprocess_collapse(const CollapseInfo& ci) override {
+    // Edges v0-vl and v0-vr disappear into v1-vl and v1-vr: remember crease flags.
+    auto& m = Base::mesh();
+    merged_.clear();
+    for (auto vx : {ci.vl, ci.vr}) {
+      if (!vx.is_valid()) continue;
+      auto h0 = m.find_halfedge(ci.v0, vx);
+      if (h0.is_valid() && m.status(m.edge_handle(h0)).feature()) merged_.push_back(vx);
+    }
+  }
+
+  void postprocess_collapse(const CollapseInfo& ci) override {
+    auto& m = Base::mesh();
+    m.property(quadric_, ci.v1) += m.property(quadric_, ci.v0);
+    for (auto vx : merged_) {
+      auto h = m.find_halfedge(ci.v1, vx);
+      if (h.is_valid()) m.status(m.edge_handle(h)).set_feature(true);
+    }
+    int c = m.property(chain_, ci.v0);
+    if (c >= 0) {
+      --chain_count_[c];
+      lock_if_at_floor(c);
+    }
+  }
+
+ private:
+  void lock_if_at_floor(int c) {
+    if (chain_count_[c] > chain_min_[c]) return;
+    auto& m = Base::mesh();
+    for (auto v : members_[c])
+      if (!m.status(v).deleted()) m.status(v).set_locked(true);
+  }
+
+  OpenMesh::VPropHandleT<Quadricd> quadric_;
+  OpenMesh::VPropHandleT<int> chain_;
+  std::vector<int> chain_min_, chain_count_;
+  std::vector<std::vector<OMesh::VertexHandle>> members_;
+  std::vector<OMesh::VertexHandle> merged_;
+};
+
+}  // namespace
+
+ControlPolyhedron build_control_polyhedron(const Mesh& mesh, const Features& features,
+                                           const Segmentation& segmentation,
+                                           const ControlOptions& options) {
+  const int n = mesh.num_vertices();
+  OMesh om;
+  std::vector<OMesh::VertexHandle> vh(n);
+  std::vector<int> source;
+  for (int i = 0; i < n; ++i) {
+    vh[i] = om.add_vertex(OpenMesh::Vec3d(mesh.points(i, 0), mesh.points(i, 1), mesh.points(i, 2)));
+    source.push_back(i);
+  }
+  ControlPolyhedron out;
+  auto add_tri = [&](int a, int b, int c) {
+    if (a == b || b == c || a == c) return;
+    if (om.add_face(vh[a], vh[b], vh[c]).is_valid()) return;
+    // Non-manifold here: give this face its own copies of the vertices (a crack, not a crash).
+    std::vector<OMesh::VertexHandle> dup;
+    for (int i : {a, b, c}) {
+      dup.push_back(om.add_vertex(om.point(vh[i])));
+      source.push_back(i);
+      ++out.split_vertices;
+    }
+    om.add_face(dup);
+  };
+  for (const auto& f : mesh.faces)
+    for (size_t k = 1; k + 1 < f.size(); ++k) add_tri(f[0], f[k], f[k + 1]);
+  if (om.n_faces() == 0) throw std::invalid_argument("mesh has no usable faces");
+
+  // Flags: sharp edges and their vertices are features; corners are locked.
+  std::set<std::pair<int, int>> sharp(features.sharp_edges.begin(), features.sharp_edges.end());
+  std::vector<char> is_corner(om.n_vertices(), 0);
+  for (int c : features.corners) is_corner[c] = 1;
+  for (auto e : om.edges()) {
+    int a = source[om.from_vertex_handle(om.halfedge_handle(e, 0)).idx()];
+    int b = source[om.to_vertex_handle(om.halfedge_handle(e, 0)).idx()];
+    if (sharp.count({std::min(a, b), std::max(a, b)}) || om.is_boundary(e)) {
+      om.status(e).set_feature(true);
+      om.status(om.from_vertex_handle(om.halfedge_handle(e, 0))).set_feature(true);
+      om.status(om.to_vertex_handle(om.halfedge_handle(e, 0))).set_feature(true);
+    }
+  }
+  for (auto v : om.vertices()) {
+    is_corner[v.idx()] = is_corner[source[v.idx()]];
+    if (is_corner[v.idx()]) om.status(v).set_locked(true);
+  }
+
+  std::vector<int> chain_of(om.n_vertices(), -1), chain_min;
+  for (const auto& line : segmentation.polylines) {
+    const bool closed = line.size() > 2 && line.front() == line.back();
+    const int id = static_cast<int>(chain_min.size());
+    chain_min.push_back(closed ? options.min_closed_loop : options.min_open_chain_interior);
+    for (size_t k = 0; k < line.size(); ++k)
+      if (!is_corner[line[k]]) chain_of[line[k]] = id;
+  }
+
+  {
+    using Decimater = OpenMesh::Decimater::DecimaterT<OMesh>;
+    Decimater dec(om);
+    typename ModFeatureQuadricT<OMesh>::Handle hq;
+    OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle hn;
+    dec.add(hq);
+    dec.add(hn);
+    dec.module(hn).set_max_normal_deviation(options.max_normal_deviation_degrees);
+    if (!dec.initialize()) throw std::logic_error("decimater modules failed to initialise");
+    dec.module(hq).set_chains(chain_of, chain_min);
+    om.update_face_normals();
+    dec.decimate_to(static_cast<size_t>(std::max(options.target_vertices, 4)));
+  }
+
+  // Collect survivors in input order (deterministic, independent of OpenMesh internals).
+  std::vector<int> new_index(om.n_vertices(), -1);
+  for (auto v : om.vertices())
+    if (!om.status(v).deleted() && !om.is_isolated(v)) {
+      new_index[v.idx()] = static_cast<int>(out.source.size());
+      out.source.push_back(source[v.idx()]);
+    }
+  out.mesh.points.resize(static_cast<Eigen::Index>(out.source.size()), 3);
+  for (auto v : om.vertices())
+    if (new_index[v.idx()] >= 0) {
+      auto p = om.point(v);
+      out.mesh.points.row(new_index[v.idx()]) << p[0], p[1], p[2];
+      if (is_corner[v.idx()]) out.mesh.corners.push_back(new_index[v.idx()]);
+    }
+  for (auto f : om.faces()) {
+    if (om.status(f).deleted()) continue;
+    std::vector<int> face;
+    for (auto v : om.fv_range(f)) face.push_back(new_index[v.idx()]);
+    out.mesh.faces.push_back(face);
+  }
+  for (auto e : om.edges()) {
+    if (om.status(e).deleted() || !om.status(e).feature()) continue;
+    int a = new_index[om.from_vertex_handle(om.halfedge_handle(e, 0)).idx()];
+    int b = new_index[om.to_vertex_handle(om.halfedge_handle(e, 0)).idx()];
+    if (a >= 0 && b >= 0) out.mesh.creases.emplace_back(std::min(a, b), std::max(a, b));
+  }
+  std::sort(out.mesh.creases.begin(), out.mesh.creases.end());
+  std::sort(out.mesh.corners.begin(), out.mesh.corners.end());
+  return out;
+}
+
+}  // namespace mm

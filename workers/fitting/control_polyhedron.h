@@ -1,0 +1,34 @@
+// The initial control polyhedron: the input decimated (OpenMesh's Decimater, halfedge
+// collapses, so every control vertex starts on an input vertex) while the feature network is
+// kept: corners never move, a crease vertex may only collapse onto its neighbour along its own
+// crease, and every crease polyline keeps enough vertices to stay a curve. The surviving sharp
+// edges become the infinitely sharp creases and the corners the corner tags of the result.
+#pragma once
+#include <vector>
+
+#include "fitting/segmentation.h"
+#include "fitting/sharp_features.h"
+#include "meshio/mesh.h"
+
+namespace mm {
+
+struct ControlOptions {
+  int target_vertices = 100;  // decimation stops here (or earlier when nothing legal is left)
+  int min_open_chain_interior = 1;  // vertices kept inside a crease polyline between two corners
+  int min_closed_loop = 4;          // vertices kept on a closed crease loop without corners
+  double max_normal_deviation_degrees = 60.0;  // rejects collapses that fold faces over
+};
+
+struct ControlPolyhedron {
+  Mesh mesh;                    // triangles; creases (i < j) and corners set
+  std::vector<int> source;      // per control vertex: the input vertex it started on
+  int split_vertices = 0;       // input vertices duplicated to make a non-manifold input manifold
+};
+
+// `mesh` should be normalised (unit box); `features`/`segmentation` are those of `mesh`.
+// Throws std::invalid_argument when the mesh has no usable faces.
+ControlPolyhedron build_control_polyhedron(const Mesh& mesh, const Features& features,
+                                           const Segmentation& segmentation,
+                                           const ControlOptions& options);
+
+}  // namespace mm
