@@ -1,50 +1,73 @@
 // The spectral watermark of the paper, section IV: embed a message into the Kirchhoff spectrum
 // of a (control) mesh with a secret key, and extract it non-blind against the original.
+//
+// Coefficient order (docs/watermark.md): the usable coefficients are those of the non-zero
+// eigenvalues, k = num_components .. n-1; coefficient j is (k, axis) with
+// k = num_components + j / 3 and axis = j % 3 (X, Y, Z interleaved, lowest frequency first).
+// The zero-eigenvalue coefficients (one per connected component: its centroid) are never touched,
+// so marking does not translate any part. Sequence entry i goes to coefficient i; the
+// 3n' - r*l highest-frequency coefficients stay unmarked.
 #pragma once
-#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "meshio/mesh.h"
 #include "spectral/spectral_basis.h"
+#include "watermark/binomial_tail.h"
+#include "watermark/key_stream.h"
 
 namespace mm {
-
-using Key = std::array<std::uint8_t, 32>;    // 256-bit customer key
-using Nonce = std::array<std::uint8_t, 24>;  // per-copy nonce for the XChaCha20 key stream
 
 enum class Method { Multiplicative = 1, Additive = 2 };  // eq. (8) and eq. (9)
 
 struct EmbedParams {
   Method method = Method::Additive;
-  double strength = 0.01;   // a
-  double threshold = 0.05;  // T (Method 2)
+  double strength = 0.01;   // a, in (0, 1)
+  double threshold = 0.05;  // T (Method 2): coefficients with |Cs| < T are moved by T a b
 };
 
-// The per-coefficient sequence B in {-1,+1}, message spread r times and XORed with the key stream.
+// 3 (n - num_components): the coefficient values that can carry the mark (3n' in the docs).
+int usable_coefficients(const SpectralBasis& basis);
+
+// The per-coefficient sequence B in {-1,+1}: the message spread r times (interleaved: entry i
+// carries message bit i mod l), XORed with the key stream, 1 -> +1, 0 -> -1.
 struct MarkSequence {
   int message_bits = 0;  // l
-  int repeat = 0;        // r = floor(3 n_usable / l)
+  int repeat = 0;        // r = floor(num_coefficients / l)
   std::vector<std::int8_t> b;  // r*l entries, +1 / -1
 };
 
+// Throws std::invalid_argument when the message is empty or longer than num_coefficients.
 MarkSequence make_sequence(const std::vector<bool>& message, int num_coefficients, const Key& key,
                            const Nonce& nonce);
 
-// Returns the watermarked positions (same connectivity, same vertex order as `original`).
+// Returns the watermarked positions (same connectivity, same vertex order as `original`):
+// original + W (Cs' - Cs), so unmarked coefficients are reproduced up to one rounding.
+// Throws std::invalid_argument for bad parameters or a message that does not fit.
 Points embed(const SpectralBasis& basis, const Points& original, const std::vector<bool>& message,
              const Key& key, const Nonce& nonce, const EmbedParams& params);
 
+// With the expected message, B is the inserted sequence and the p-value is the fair-coin binomial
+// tail. Without it, B is rebuilt from the decoded message, which agrees with at least half of each
+// bit's copies by construction, so the p-value is the exact tail of that majority-vote count
+// (majority_vote_tail) rather than the binomial.
 struct Extraction {
-  double correlation = 0;        // paper: correlation between B'' and B
-  std::vector<bool> message;     // majority vote per bit
+  double correlation = 0;        // (1/m) sum B'' B = (2 agreements - m) / m over the m compared
+  std::vector<bool> message;     // majority vote per bit (a tie or no vote gives false)
+  int tied_bits = 0;             // bits whose vote was tied or had no compared copy
   double bit_error_rate = 0;     // against `expected` when given, else NaN
   int agreements = 0, compared = 0;  // coefficient signs that agree with B / that carried a sign
-  double p_value = 1;            // P[X >= agreements], X ~ Binomial(compared, 1/2)
+  int repeat = 0;                // r used
+  bool message_known = false;    // whether B came from `expected` (else from the decoded message)
+  double p_value = 1;            // P[chance agreement >= agreements] (see above); 1 if m = 0
+  double neg_log10_p = 0;        // -log10 of that, still meaningful where p_value underflows
 };
 
 // Non-blind extraction: `suspect` must already be resynchronised to the original's vertex order.
+// A coefficient is compared when its embedding move (|a Cs| or T a) is above the transform's
+// rounding floor (1e-11 x the largest |Cs|) and the suspect's displacement is non-zero.
+// Throws InputError("suspect mesh", ...) for a vertex count mismatch or non-finite coordinates.
 Extraction extract(const SpectralBasis& basis, const Points& original, const Points& suspect,
                    int message_bits, const Key& key, const Nonce& nonce, const EmbedParams& params,
                    const std::vector<bool>* expected = nullptr);
