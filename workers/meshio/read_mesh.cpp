@@ -1,49 +1,120 @@
-// Interim reader/writer through OpenMesh's PolyMesh (to be hardened: raw importer, welding,
-// validation, non-manifold repair).
 #include "meshio/read_mesh.h"
 
-#include <OpenMesh/Core/IO/MeshIO.hh>
-#include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <memory>
+
+#include "meshio/formats.h"
 
 namespace mm {
 namespace {
-struct Traits : OpenMesh::DefaultTraits {
-  using Point = OpenMesh::Vec3d;
-};
-using OMesh = OpenMesh::PolyMesh_ArrayKernelT<Traits>;
-}  // namespace
 
-Mesh read_mesh(const std::string& path) {
-  if (!std::filesystem::exists(path)) throw InputError(path, "no such file");
-  OMesh om;
-  if (!OpenMesh::IO::read_mesh(om, path)) throw InputError(path, "could not be read");
-  Mesh m;
-  m.points.resize(static_cast<Eigen::Index>(om.n_vertices()), 3);
-  for (auto v : om.vertices()) {
-    auto p = om.point(v);
-    m.points.row(v.idx()) << p[0], p[1], p[2];
-  }
-  for (auto f : om.faces()) {
-    std::vector<int> face;
-    for (auto v : om.fv_range(f)) face.push_back(v.idx());
-    m.faces.push_back(std::move(face));
-  }
-  return m;
+// Larger inputs are not CAD parts we can process; refusing early keeps memory bounded.
+constexpr std::uintmax_t kMaxFileBytes = std::uintmax_t(2) << 30;
+
+std::string lower_extension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
 }
 
-void write_mesh(const Mesh& mesh, const std::string& path) {
-  OMesh om;
-  std::vector<OMesh::VertexHandle> vh;
-  for (int i = 0; i < mesh.num_vertices(); ++i)
-    vh.push_back(om.add_vertex(OMesh::Point(mesh.points(i, 0), mesh.points(i, 1), mesh.points(i, 2))));
-  for (const auto& f : mesh.faces) {
-    std::vector<OMesh::VertexHandle> h;
-    for (int i : f) h.push_back(vh[i]);
-    om.add_face(h);
+std::string load_file(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  auto st = fs::status(path, ec);
+  if (ec || !fs::exists(st)) throw InputError(path, "no such file");
+  if (fs::is_directory(st)) throw InputError(path, "is a directory, not a mesh file");
+  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
+  std::uintmax_t size = fs::file_size(path, ec);
+  if (ec) throw InputError(path, "cannot determine file size: " + ec.message());
+  if (size == 0) throw InputError(path, "empty file");
+  if (size > kMaxFileBytes)
+    throw InputError(path, "file too large (" + std::to_string(size) + " bytes, limit 2 GiB)");
+  std::string bytes(static_cast<size_t>(size), '\0');
+  size_t got = std::fread(bytes.data(), 1, bytes.size(), f.get());
+  if (got != bytes.size()) throw InputError(path, "read error after " + std::to_string(got) + " bytes");
+  return bytes;
+}
+
+// Removes a vertex listed twice in a row (cyclically); drops faces that still do not have at
+// least 3 distinct vertices. Counted in the report: never silent.
+void clean_faces(Mesh& mesh, ReadReport& report) {
+  std::vector<std::vector<int>> kept;
+  kept.reserve(mesh.faces.size());
+  for (auto& f : mesh.faces) {
+    std::vector<int> g;
+    g.reserve(f.size());
+    for (int v : f)
+      if (g.empty() || g.back() != v) g.push_back(v);
+    while (g.size() > 1 && g.front() == g.back()) g.pop_back();
+    if (g.size() != f.size()) ++report.collapsed_faces;
+    std::vector<int> sorted = g;
+    std::sort(sorted.begin(), sorted.end());
+    bool repeated = std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end();
+    if (g.size() < 3 || repeated) {
+      ++report.degenerate_faces_dropped;
+      if (g.size() != f.size()) --report.collapsed_faces;  // counted once, as dropped
+      continue;
+    }
+    kept.push_back(std::move(g));
   }
-  OpenMesh::IO::Options opt;
-  if (!OpenMesh::IO::write_mesh(om, path, opt, 17)) throw InputError(path, "could not be written");
+  mesh.faces = std::move(kept);
+  std::vector<char> used(static_cast<size_t>(mesh.num_vertices()), 0);
+  for (const auto& f : mesh.faces)
+    for (int v : f) used[static_cast<size_t>(v)] = 1;
+  report.unreferenced_vertices = static_cast<int>(std::count(used.begin(), used.end(), 0));
+}
+
+}  // namespace
+
+namespace formats {
+void check_finite(const double* xyz, const std::string& source, const std::string& what) {
+  for (int k = 0; k < 3; ++k)
+    if (!std::isfinite(xyz[k]))
+      throw InputError(source, std::string("non-finite coordinate (") +
+                                   (std::isnan(xyz[k]) ? "NaN" : "Inf") + ") in " + what);
+}
+}  // namespace formats
+
+Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::string& source,
+                ReadReport* report) {
+  ReadReport local;
+  ReadReport& r = report ? *report : local;
+  r = ReadReport{};
+  if (bytes.empty()) throw InputError(source, "empty file");
+  Mesh mesh;
+  if (format == "stl")
+    mesh = formats::parse_stl(bytes, source, r);
+  else if (format == "obj")
+    mesh = formats::parse_obj(bytes, source, r);
+  else if (format == "off")
+    mesh = formats::parse_off(bytes, source, r);
+  else if (format == "ply")
+    mesh = formats::parse_ply(bytes, source, r);
+  else
+    throw InputError(source, "unknown mesh format \"" + format + "\" (expected stl, obj, off or ply)");
+  if (mesh.num_vertices() == 0) throw InputError(source, "no vertices");
+  size_t raw_faces = mesh.faces.size();
+  if (raw_faces == 0) throw InputError(source, "no faces");
+  clean_faces(mesh, r);
+  if (mesh.faces.empty())
+    throw InputError(source, "no faces left: all " + std::to_string(raw_faces) +
+                                 " faces are degenerate (fewer than 3 distinct vertices)");
+  return mesh;
+}
+
+Mesh read_mesh(const std::string& path, ReadReport* report) {
+  std::string ext = lower_extension(path);
+  if (ext != ".stl" && ext != ".obj" && ext != ".off" && ext != ".ply")
+    throw InputError(path, "unknown mesh format \"" + ext + "\" (expected .stl, .obj, .off or .ply)");
+  std::string bytes = load_file(path);
+  return parse_mesh(bytes, ext.substr(1), path, report);
 }
 
 }  // namespace mm

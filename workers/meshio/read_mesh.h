@@ -1,18 +1,44 @@
-// Reading and writing meshes: STL (binary/ASCII, duplicate vertices welded), OBJ, OFF, PLY.
-// Every failure throws InputError naming the file and the reason; faces are never dropped.
+// Reading and writing meshes: STL (binary/ASCII, duplicate vertices welded), OBJ, OFF, PLY
+// (ASCII and binary). Hand-written strict parsers: OpenMesh's readers narrow coordinates to
+// float and accept truncated or malformed files silently (see docs/mesh-io.md), which the
+// watermark cannot afford. Every failure throws InputError naming the source and the reason.
+//
+// read_mesh returns the file faithfully: vertex order as in the file (STL: order of first
+// appearance after welding), faces in file order with their vertex order, no face dropped for
+// being non-manifold. The only faces removed are degenerate ones (fewer than 3 distinct
+// vertices, which no polygon mesh can hold); they are counted in ReadReport, never silent.
+// For a mesh that loads into a halfedge structure use read_mesh_manifold (repair_manifold.h).
 #pragma once
 #include <string>
+#include <string_view>
 
 #include "meshio/mesh.h"
 
 namespace mm {
 
-// Reads by extension. Throws InputError for missing, empty, truncated, malformed files,
-// NaN/Inf coordinates, absurd counts and unknown formats.
-Mesh read_mesh(const std::string& path);
+struct ReadReport {
+  std::string format;                // "stl-binary", "stl-ascii", "obj", "off", "ply-ascii", "ply-binary"
+  int welded_vertices = 0;           // STL corners merged into an earlier vertex with equal coordinates
+  int collapsed_faces = 0;           // faces that listed a vertex twice in a row; the repeat was removed
+  int degenerate_faces_dropped = 0;  // faces with < 3 distinct vertices (or a vertex repeated apart)
+  int unreferenced_vertices = 0;     // kept (vertex order matters), but no face uses them
+};
 
-// Writes by extension (.stl binary, .obj, .off, .ply); written to a temporary file in the same
-// folder and renamed, so a failed write leaves nothing half-written. Throws InputError.
+// Reads by extension (.stl .obj .off .ply, case-insensitive). Throws InputError for missing,
+// empty, truncated or malformed files, NaN/Inf coordinates, absurd counts, indices out of range,
+// unknown formats, and files with no (non-degenerate) face.
+Mesh read_mesh(const std::string& path, ReadReport* report = nullptr);
+
+// The same from bytes already in memory (an upload, a blob); format is "stl", "obj", "off" or
+// "ply"; source names the data in error messages.
+Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::string& source,
+                ReadReport* report = nullptr);
+
+// Writes by extension: .stl (binary, float32 coordinates, polygons fan-triangulated), .obj, .off,
+// .ply (ASCII, doubles in shortest round-trip form, so reading back gives identical positions).
+// Written to a temporary file in the same folder, fsynced, then renamed over path: a failure
+// leaves nothing half-written. Creases and corners are not stored by these formats.
+// Throws InputError(path, reason) for an invalid mesh or an I/O failure.
 void write_mesh(const Mesh& mesh, const std::string& path);
 
 }  // namespace mm

@@ -1,0 +1,20 @@
+// The per-format parsers behind read_mesh (internal to meshio). Each returns vertices and raw
+// face index lists exactly as stored; indices are already checked against the vertex count.
+// Shared clean-up (degenerate faces, zero faces) happens in read_mesh.cpp.
+#pragma once
+#include <string>
+#include <string_view>
+
+#include "meshio/read_mesh.h"
+
+namespace mm::formats {
+
+Mesh parse_stl(std::string_view bytes, const std::string& source, ReadReport& report);
+Mesh parse_obj(std::string_view bytes, const std::string& source, ReadReport& report);
+Mesh parse_off(std::string_view bytes, const std::string& source, ReadReport& report);
+Mesh parse_ply(std::string_view bytes, const std::string& source, ReadReport& report);
+
+// Throws InputError unless all three are finite; what names the item ("vertex 12").
+void check_finite(const double* xyz, const std::string& source, const std::string& what);
+
+}  // namespace mm::formats

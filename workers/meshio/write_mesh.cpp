@@ -1,0 +1,196 @@
+// Writers. Text formats print doubles with std::to_chars (shortest form that reads back to the
+// identical double, independent of the C locale), so write/read round trips are exact.
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+
+#include <Eigen/Geometry>
+
+#include "meshio/read_mesh.h"
+
+namespace mm {
+namespace {
+
+void append_double(std::string& out, double d) {
+  char buf[32];
+  auto r = std::to_chars(buf, buf + sizeof buf, d);
+  out.append(buf, r.ptr);
+}
+
+void append_int(std::string& out, long long v) {
+  char buf[24];
+  auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out.append(buf, r.ptr);
+}
+
+void check_mesh(const Mesh& mesh, const std::string& path) {
+  if (mesh.num_faces() == 0) throw InputError(path, "refusing to write a mesh with no faces");
+  for (Eigen::Index i = 0; i < mesh.points.rows(); ++i)
+    for (int k = 0; k < 3; ++k)
+      if (!std::isfinite(mesh.points(i, k)))
+        throw InputError(path, "refusing to write non-finite coordinate in vertex " + std::to_string(i));
+  for (size_t i = 0; i < mesh.faces.size(); ++i) {
+    if (mesh.faces[i].size() < 3) throw InputError(path, "face " + std::to_string(i) + " has fewer than 3 vertices");
+    for (int v : mesh.faces[i])
+      if (v < 0 || v >= mesh.num_vertices())
+        throw InputError(path, "face " + std::to_string(i) + " index " + std::to_string(v) + " out of range");
+  }
+}
+
+std::string off_text(const Mesh& m) {
+  std::string s = "OFF\n";
+  append_int(s, m.num_vertices());
+  s += ' ';
+  append_int(s, m.num_faces());
+  s += " 0\n";
+  for (Eigen::Index i = 0; i < m.points.rows(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      if (k) s += ' ';
+      append_double(s, m.points(i, k));
+    }
+    s += '\n';
+  }
+  for (const auto& f : m.faces) {
+    append_int(s, static_cast<long long>(f.size()));
+    for (int v : f) {
+      s += ' ';
+      append_int(s, v);
+    }
+    s += '\n';
+  }
+  return s;
+}
+
+std::string obj_text(const Mesh& m) {
+  std::string s = "# meshmark\n";
+  for (Eigen::Index i = 0; i < m.points.rows(); ++i) {
+    s += 'v';
+    for (int k = 0; k < 3; ++k) {
+      s += ' ';
+      append_double(s, m.points(i, k));
+    }
+    s += '\n';
+  }
+  for (const auto& f : m.faces) {
+    s += 'f';
+    for (int v : f) {
+      s += ' ';
+      append_int(s, v + 1);
+    }
+    s += '\n';
+  }
+  return s;
+}
+
+std::string ply_text(const Mesh& m) {
+  size_t longest = 0;
+  for (const auto& f : m.faces) longest = std::max(longest, f.size());
+  std::string s = "ply\nformat ascii 1.0\ncomment meshmark\nelement vertex ";
+  append_int(s, m.num_vertices());
+  s += "\nproperty double x\nproperty double y\nproperty double z\nelement face ";
+  append_int(s, m.num_faces());
+  s += longest < 256 ? "\nproperty list uchar int vertex_indices\n" : "\nproperty list uint int vertex_indices\n";
+  s += "end_header\n";
+  std::string body = off_text(m);
+  // The OFF body after its two header lines is exactly PLY ASCII's vertex and face lines.
+  size_t second = body.find('\n', body.find('\n') + 1);
+  s.append(body, second + 1, std::string::npos);
+  return s;
+}
+
+void put32(std::string& s, uint32_t u) {
+  for (int k = 0; k < 4; ++k) s += static_cast<char>((u >> (8 * k)) & 0xff);
+}
+void putf(std::string& s, float f) {
+  uint32_t u;
+  std::memcpy(&u, &f, 4);
+  put32(s, u);
+}
+
+std::string stl_bytes(const Mesh& m, const std::string& path) {
+  size_t tris = 0;
+  for (const auto& f : m.faces) tris += f.size() - 2;
+  if (tris > 0xffffffffull) throw InputError(path, "too many triangles for binary STL");
+  std::string s(80, '\0');
+  const char* title = "meshmark binary STL";
+  std::memcpy(s.data(), title, std::strlen(title));
+  put32(s, static_cast<uint32_t>(tris));
+  s.reserve(84 + 50 * tris);
+  for (const auto& f : m.faces)
+    for (size_t k = 1; k + 1 < f.size(); ++k) {  // fan triangulation keeps the orientation
+      Eigen::Vector3d a = m.points.row(f[0]), b = m.points.row(f[k]), c = m.points.row(f[k + 1]);
+      Eigen::Vector3d n = (b - a).cross(c - a);
+      double len = n.norm();
+      if (len > 0) n /= len;
+      for (int i = 0; i < 3; ++i) putf(s, static_cast<float>(n[i]));
+      for (const auto* p : {&a, &b, &c})
+        for (int i = 0; i < 3; ++i) putf(s, static_cast<float>((*p)[i]));
+      s += '\0';
+      s += '\0';
+    }
+  return s;
+}
+
+// Temp file next to the target, fsync, rename: readers never see a half-written mesh.
+void atomic_write(const std::string& path, const std::string& bytes) {
+  namespace fs = std::filesystem;
+  fs::path target(path);
+  fs::path dir = target.parent_path().empty() ? fs::path(".") : target.parent_path();
+  std::string tmpl = (dir / ("." + target.filename().string() + ".tmp.XXXXXX")).string();
+  std::vector<char> name(tmpl.begin(), tmpl.end());
+  name.push_back('\0');
+  int fd = ::mkstemp(name.data());
+  if (fd < 0) throw InputError(path, std::string("cannot create temporary file: ") + std::strerror(errno));
+  auto fail = [&](const char* what) {
+    int err = errno;
+    ::close(fd);
+    ::unlink(name.data());
+    throw InputError(path, std::string(what) + ": " + std::strerror(err));
+  };
+  size_t done = 0;
+  while (done < bytes.size()) {
+    ssize_t w = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      fail("write failed");
+    }
+    done += static_cast<size_t>(w);
+  }
+  if (::fchmod(fd, 0644) != 0) fail("chmod failed");
+  if (::fsync(fd) != 0) fail("fsync failed");
+  if (::close(fd) != 0) {
+    int err = errno;
+    ::unlink(name.data());
+    throw InputError(path, std::string("close failed: ") + std::strerror(err));
+  }
+  if (::rename(name.data(), path.c_str()) != 0) {
+    int err = errno;
+    ::unlink(name.data());
+    throw InputError(path, std::string("rename failed: ") + std::strerror(err));
+  }
+}
+
+}  // namespace
+
+void write_mesh(const Mesh& mesh, const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (ext != ".stl" && ext != ".obj" && ext != ".off" && ext != ".ply")
+    throw InputError(path, "unknown mesh format \"" + ext + "\" (expected .stl, .obj, .off or .ply)");
+  check_mesh(mesh, path);
+  std::string bytes = ext == ".stl" ? stl_bytes(mesh, path)
+                      : ext == ".obj" ? obj_text(mesh)
+                      : ext == ".off" ? off_text(mesh)
+                                      : ply_text(mesh);
+  atomic_write(path, bytes);
+}
+
+}  // namespace mm
