@@ -103,6 +103,10 @@ Tx::~Tx() {
   if (!done_) sqlite3_exec(db_.get(), "ROLLBACK", nullptr, nullptr, nullptr);
 }
 void Tx::commit() {
+  // Statements read only partly (a RETURNING row, a single-row SELECT) still count as "in
+  // progress" and would make COMMIT fail; their results are already copied out, so reset them.
+  for (sqlite3_stmt* s = sqlite3_next_stmt(db_.get(), nullptr); s; s = sqlite3_next_stmt(db_.get(), s))
+    if (sqlite3_stmt_busy(s)) sqlite3_reset(s);
   db_.exec("COMMIT", "commit");
   done_ = true;
 }

@@ -1,0 +1,357 @@
+#include <gtest/gtest.h>
+
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include "store_test_util.h"
+
+using namespace mm;
+using namespace mm::test;
+using store::JobSpec;
+using store::JobState;
+
+namespace {
+JobSpec spec(const std::string& kind = "noop", int priority = 0, int max_attempts = 5,
+             const std::string& idem = "") {
+  JobSpec s;
+  s.kind = kind;
+  s.priority = priority;
+  s.max_attempts = max_attempts;
+  s.idempotency_key = idem;
+  return s;
+}
+}  // namespace
+
+TEST(Queue, EnqueueClaimComplete) {
+  TempDir dir;
+  StepClock clock;
+  auto s = store::open_sqlite_store(options(dir, &clock));
+  auto e = s->enqueue(spec());
+  ASSERT_TRUE(e.created);
+  EXPECT_EQ(e.job.state, JobState::available);
+  EXPECT_EQ(e.job.attempt, 0);
+  auto j = s->claim("w1", 30'000);
+  ASSERT_TRUE(j);
+  EXPECT_EQ(j->id, e.job.id);
+  EXPECT_EQ(j->state, JobState::running);
+  EXPECT_EQ(j->attempt, 1);
+  EXPECT_EQ(j->worker_id, "w1");
+  EXPECT_EQ(*j->lease_until, clock.now() + 30'000);
+  EXPECT_FALSE(s->claim("w2", 30'000)) << "a running job must not be claimed twice";
+  store::JobRecords r;
+  r.result_json = R"({"ok":true})";
+  s->complete(j->id, "w1", r);
+  auto done = s->get_job(j->id);
+  EXPECT_EQ(done->state, JobState::completed);
+  EXPECT_EQ(done->result_json, R"({"ok":true})");
+  EXPECT_EQ(*done->finished_at, clock.now());
+  EXPECT_FALSE(done->lease_until);
+  EXPECT_THROW(s->complete(j->id, "w1", r), store::LeaseLost) << "completing twice must fail";
+  EXPECT_FALSE(s->claim("w1", 1000));
+}
+
+TEST(Queue, RejectsBadSpecs) {
+  TempDir dir;
+  auto s = store::open_sqlite_store(options(dir));
+  EXPECT_THROW(s->enqueue(spec("")), store::StoreError);
+  EXPECT_THROW(s->enqueue(spec("noop", 0, 0)), store::StoreError);
+  JobSpec bad = spec();
+  bad.payload_json = "{not json";
+  EXPECT_THROW(s->enqueue(bad), store::StoreError);
+  EXPECT_EQ(s->list_jobs().size(), 0u);
+}
+
+TEST(Queue, ConcurrentClaimsGiveEachJobToExactlyOneWorker) {
+  TempDir dir;
+  auto o = options(dir);
+  const int kJobs = 300;
+  {
+    auto s = store::open_sqlite_store(o);
+    for (int i = 0; i < kJobs; ++i) s->enqueue(spec());
+  }
+  std::mutex m;
+  std::map<std::int64_t, int> claimed;  // job id -> times claimed
+  auto worker = [&](store::Store& st, const std::string& id) {
+    while (auto j = st.claim(id, 60'000)) {
+      {
+        std::lock_guard<std::mutex> l(m);
+        ++claimed[j->id];
+      }
+      st.complete(j->id, id, {});
+    }
+  };
+  // Four threads with their own connections (the cross-connection lock is what is tested), plus
+  // two threads sharing one Store object.
+  std::vector<std::unique_ptr<store::Store>> own;
+  for (int i = 0; i < 4; ++i) own.push_back(store::open_sqlite_store(o));
+  auto shared = store::open_sqlite_store(o);
+  std::vector<std::thread> ts;
+  for (int i = 0; i < 4; ++i) ts.emplace_back(worker, std::ref(*own[i]), "own-" + std::to_string(i));
+  for (int i = 0; i < 2; ++i) ts.emplace_back(worker, std::ref(*shared), "shared-" + std::to_string(i));
+  for (auto& t : ts) t.join();
+  ASSERT_EQ(claimed.size(), static_cast<std::size_t>(kJobs));
+  for (auto& [id, n] : claimed) EXPECT_EQ(n, 1) << "job " << id;
+  auto c = shared->counts();
+  EXPECT_EQ(c.completed, kJobs);
+  EXPECT_EQ(c.available + c.running + c.retryable + c.discarded, 0);
+}
+
+TEST(Queue, ExpiredLeaseIsClaimableAgainAndOldWorkerLosesIt) {
+  TempDir dir;
+  StepClock clock;
+  auto s = store::open_sqlite_store(options(dir, &clock));
+  auto id = s->enqueue(spec()).job.id;
+  auto j = s->claim("w1", 1000);
+  ASSERT_TRUE(j);
+  clock.advance(800);
+  s->heartbeat(id, "w1", 1000);  // lease now until +1800
+  clock.advance(900);
+  EXPECT_FALSE(s->claim("w2", 1000)) << "heartbeat must keep the lease alive";
+  clock.advance(200);  // past the lease
+  auto again = s->claim("w2", 1000);
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->id, id);
+  EXPECT_EQ(again->attempt, 2);
+  EXPECT_EQ(again->worker_id, "w2");
+  ASSERT_EQ(again->errors.size(), 1u);
+  EXPECT_NE(again->errors[0].error.find("lease expired"), std::string::npos);
+  EXPECT_THROW(s->heartbeat(id, "w1", 1000), store::LeaseLost);
+  EXPECT_THROW(s->complete(id, "w1", {}), store::LeaseLost);
+  EXPECT_THROW(s->fail(id, "w1", "x"), store::LeaseLost);
+  s->complete(id, "w2", {});
+  EXPECT_EQ(s->get_job(id)->state, JobState::completed);
+}
+
+TEST(Queue, ReaperDiscardsJobWhoseWorkerKeepsDyingAtMaxAttempts) {
+  TempDir dir;
+  StepClock clock;
+  auto s = store::open_sqlite_store(options(dir, &clock));
+  auto id = s->enqueue(spec("noop", 0, 2)).job.id;
+  ASSERT_TRUE(s->claim("w1", 100));
+  clock.advance(101);
+  EXPECT_EQ(s->reap_expired_leases(), 1);
+  EXPECT_EQ(s->get_job(id)->state, JobState::available);
+  ASSERT_TRUE(s->claim("w1", 100));
+  clock.advance(101);
+  EXPECT_EQ(s->reap_expired_leases(), 1);
+  auto j = s->get_job(id);
+  EXPECT_EQ(j->state, JobState::discarded);
+  EXPECT_EQ(j->errors.size(), 2u);
+  EXPECT_FALSE(s->claim("w1", 100));
+}
+
+TEST(Queue, RetriesWithExponentialBackoffAndJitterThenDiscardsKeepingErrors) {
+  TempDir dir;
+  StepClock clock;
+  auto o = options(dir, &clock);
+  o.backoff.base = 1000;
+  o.backoff.max = 1'000'000;
+  o.backoff.jitter = 0.1;
+  auto s = store::open_sqlite_store(o);
+  auto id = s->enqueue(spec("noop", 0, 4)).job.id;
+  store::Millis expected_delay = 1000;
+  for (int attempt = 1; attempt <= 3; ++attempt) {
+    auto j = s->claim("w", 10'000);
+    ASSERT_TRUE(j) << attempt;
+    EXPECT_EQ(j->attempt, attempt);
+    EXPECT_EQ(s->fail(id, "w", "boom " + std::to_string(attempt)), JobState::retryable);
+    auto r = s->get_job(id);
+    store::Millis delay = r->scheduled_at - clock.now();
+    EXPECT_GE(delay, expected_delay) << attempt;
+    EXPECT_LT(delay, expected_delay + expected_delay / 10 + 1) << attempt;
+    clock.advance(delay - 1);
+    EXPECT_FALSE(s->claim("w", 10'000)) << "claimed before its backoff ended, attempt " << attempt;
+    clock.advance(1);
+    expected_delay *= 2;
+  }
+  ASSERT_TRUE(s->claim("w", 10'000));
+  EXPECT_EQ(s->fail(id, "w", "boom 4"), JobState::discarded);
+  auto j = s->get_job(id);
+  EXPECT_EQ(j->state, JobState::discarded);
+  EXPECT_EQ(j->attempt, 4);
+  ASSERT_EQ(j->errors.size(), 4u);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_EQ(j->errors[i].attempt, i + 1);
+    EXPECT_EQ(j->errors[i].error, "boom " + std::to_string(i + 1));
+  }
+  EXPECT_TRUE(j->finished_at);
+  clock.advance(10'000'000);
+  EXPECT_FALSE(s->claim("w", 1000));
+}
+
+TEST(Queue, JitterSpreadsRetries) {
+  TempDir dir;
+  StepClock clock;
+  auto o = options(dir, &clock);
+  o.backoff.base = 10'000;
+  o.backoff.jitter = 0.5;
+  auto s = store::open_sqlite_store(o);
+  std::set<store::Millis> delays;
+  for (int i = 0; i < 20; ++i) {
+    auto id = s->enqueue(spec()).job.id;
+    ASSERT_TRUE(s->claim("w", 1000));
+    s->fail(id, "w", "e");
+    delays.insert(s->get_job(id)->scheduled_at - clock.now());
+  }
+  EXPECT_GT(delays.size(), 15u) << "jitter should make retry times differ";
+  for (auto d : delays) {
+    EXPECT_GE(d, 10'000);
+    EXPECT_LT(d, 15'000);
+  }
+}
+
+TEST(Queue, NonRetryableFailureDiscardsAtOnce) {
+  TempDir dir;
+  auto s = store::open_sqlite_store(options(dir));
+  auto id = s->enqueue(spec("noop", 0, 10)).job.id;
+  ASSERT_TRUE(s->claim("w", 1000));
+  EXPECT_EQ(s->fail(id, "w", "malformed mesh", false), JobState::discarded);
+  EXPECT_EQ(s->get_job(id)->errors.at(0).error, "malformed mesh");
+}
+
+TEST(Queue, CancelAndRetry) {
+  TempDir dir;
+  StepClock clock;
+  auto s = store::open_sqlite_store(options(dir, &clock));
+  auto a = s->enqueue(spec()).job.id;
+  EXPECT_TRUE(s->cancel(a));
+  EXPECT_EQ(s->get_job(a)->state, JobState::cancelled);
+  EXPECT_FALSE(s->claim("w", 1000)) << "cancelled job claimed";
+  EXPECT_FALSE(s->cancel(a)) << "already cancelled";
+  EXPECT_TRUE(s->retry(a));
+  EXPECT_EQ(s->get_job(a)->state, JobState::available);
+
+  // Cancelling a running job: its worker finds out and cannot complete it.
+  auto j = s->claim("w", 1000);
+  ASSERT_TRUE(j);
+  EXPECT_TRUE(s->cancel(j->id));
+  EXPECT_THROW(s->heartbeat(j->id, "w", 1000), store::LeaseLost);
+  EXPECT_THROW(s->complete(j->id, "w", {}), store::LeaseLost);
+  EXPECT_EQ(s->get_job(j->id)->state, JobState::cancelled);
+
+  // Completed jobs cannot be cancelled or retried.
+  auto b = s->enqueue(spec()).job.id;
+  ASSERT_TRUE(s->claim("w", 1000));
+  s->complete(b, "w", {});
+  EXPECT_FALSE(s->cancel(b));
+  EXPECT_FALSE(s->retry(b));
+  EXPECT_EQ(s->get_job(b)->state, JobState::completed);
+
+  // Retrying a discarded job grants one more attempt.
+  auto c = s->enqueue(spec("noop", 0, 1)).job.id;
+  ASSERT_TRUE(s->claim("w", 1000));
+  EXPECT_EQ(s->fail(c, "w", "x"), JobState::discarded);
+  EXPECT_TRUE(s->retry(c));
+  auto cj = s->claim("w", 1000);
+  ASSERT_TRUE(cj);
+  EXPECT_EQ(cj->attempt, 2);
+  EXPECT_EQ(cj->max_attempts, 2);
+  EXPECT_EQ(s->fail(c, "w", "y"), JobState::discarded);
+}
+
+TEST(Queue, PrioritiesThenScheduleThenId) {
+  TempDir dir;
+  StepClock clock;
+  auto s = store::open_sqlite_store(options(dir, &clock));
+  auto low = s->enqueue(spec("noop", -5)).job.id;
+  auto mid1 = s->enqueue(spec("noop", 0)).job.id;
+  auto high = s->enqueue(spec("noop", 10)).job.id;
+  auto mid2 = s->enqueue(spec("noop", 0)).job.id;
+  JobSpec later = spec("noop", 100);
+  later.scheduled_at = clock.now() + 5000;
+  auto future = s->enqueue(later).job.id;
+  std::vector<std::int64_t> order;
+  while (auto j = s->claim("w", 1'000'000)) order.push_back(j->id);
+  EXPECT_EQ(order, (std::vector<std::int64_t>{high, mid1, mid2, low}));
+  clock.advance(5000);
+  auto f = s->claim("w", 1000);
+  ASSERT_TRUE(f);
+  EXPECT_EQ(f->id, future);
+  EXPECT_EQ(s->next_scheduled(), std::nullopt);
+}
+
+TEST(Queue, IdempotencyKeyReturnsTheExistingJob) {
+  TempDir dir;
+  auto s = store::open_sqlite_store(options(dir));
+  auto a = s->enqueue(spec("protect", 0, 5, "asset-abc/customer-1"));
+  auto b = s->enqueue(spec("protect", 7, 5, "asset-abc/customer-1"));
+  EXPECT_TRUE(a.created);
+  EXPECT_FALSE(b.created);
+  EXPECT_EQ(a.job.id, b.job.id);
+  EXPECT_EQ(b.job.priority, 0) << "the duplicate must not change the existing job";
+  // Still deduplicated after the job completed.
+  ASSERT_TRUE(s->claim("w", 1000));
+  s->complete(a.job.id, "w", {});
+  auto c = s->enqueue(spec("protect", 0, 5, "asset-abc/customer-1"));
+  EXPECT_FALSE(c.created);
+  EXPECT_EQ(c.job.state, JobState::completed);
+  EXPECT_EQ(s->list_jobs().size(), 1u);
+  // Jobs without a key are never deduplicated.
+  EXPECT_TRUE(s->enqueue(spec()).created);
+  EXPECT_TRUE(s->enqueue(spec()).created);
+}
+
+TEST(Queue, KindFilterAndRelease) {
+  TempDir dir;
+  auto s = store::open_sqlite_store(options(dir));
+  auto p = s->enqueue(spec("protect")).job.id;
+  auto d = s->enqueue(spec("detect", 5)).job.id;
+  auto j = s->claim("w", 1000, {"protect"});
+  ASSERT_TRUE(j);
+  EXPECT_EQ(j->id, p);
+  EXPECT_FALSE(s->claim("w2", 1000, {"protect"}));
+  s->release(p, "w");  // graceful shutdown: back to available, attempt not spent
+  auto again = s->claim("w3", 1000, {"protect", "other"});
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->id, p);
+  EXPECT_EQ(again->attempt, 1);
+  auto dj = s->claim("w4", 1000);
+  ASSERT_TRUE(dj);
+  EXPECT_EQ(dj->id, d);
+}
+
+TEST(Queue, TransitionTable) {
+  using S = JobState;
+  EXPECT_TRUE(store::job_transition_allowed(S::available, S::running));
+  EXPECT_TRUE(store::job_transition_allowed(S::running, S::completed));
+  EXPECT_TRUE(store::job_transition_allowed(S::running, S::retryable));
+  EXPECT_TRUE(store::job_transition_allowed(S::retryable, S::running));
+  EXPECT_TRUE(store::job_transition_allowed(S::discarded, S::available));
+  EXPECT_FALSE(store::job_transition_allowed(S::completed, S::available));
+  EXPECT_FALSE(store::job_transition_allowed(S::completed, S::cancelled));
+  EXPECT_FALSE(store::job_transition_allowed(S::available, S::completed));
+  EXPECT_FALSE(store::job_transition_allowed(S::discarded, S::running));
+  for (auto st : {S::available, S::running, S::completed, S::retryable, S::discarded, S::cancelled})
+    EXPECT_EQ(store::job_state_from_string(store::to_string(st)), st);
+  EXPECT_THROW(store::job_state_from_string("bogus"), store::StoreError);
+}
+
+TEST(Queue, RowsInsertedDirectlyByAnotherSystemFollowTheContract) {
+  // docs/queue-contract.md: a PDM system inserts (kind, payload_json[, priority, max_attempts,
+  // idempotency_key, scheduled_at]) and the defaults make the row claimable.
+  TempDir dir;
+  auto o = options(dir);
+  auto s = store::open_sqlite_store(o);
+  raw_query(o.db_path,
+            "INSERT INTO jobs(kind, payload_json, priority, idempotency_key) "
+            "VALUES('protect', '{\"file\":\"/pdm/part.stl\",\"customers\":[\"acme\"]}', 3, 'pdm-42')");
+  auto j = s->claim("w", 1000);
+  ASSERT_TRUE(j);
+  EXPECT_EQ(j->kind, "protect");
+  EXPECT_EQ(j->priority, 3);
+  EXPECT_EQ(j->max_attempts, 5);
+  EXPECT_EQ(j->idempotency_key, "pdm-42");
+  // A duplicate insert with the same key is refused by the database, and enqueue() sees it.
+  std::string err;
+  raw_query(o.db_path, "INSERT INTO jobs(kind, idempotency_key) VALUES('protect', 'pdm-42')", &err);
+  EXPECT_NE(err.find("UNIQUE"), std::string::npos) << err;
+  EXPECT_FALSE(s->enqueue(spec("protect", 0, 5, "pdm-42")).created);
+  // Malformed rows are refused by CHECK constraints, not discovered later by a worker.
+  raw_query(o.db_path, "INSERT INTO jobs(kind, payload_json) VALUES('protect', 'not json')", &err);
+  EXPECT_NE(err.find("CHECK"), std::string::npos) << err;
+  raw_query(o.db_path, "INSERT INTO jobs(kind, state) VALUES('protect', 'weird')", &err);
+  EXPECT_NE(err.find("CHECK"), std::string::npos) << err;
+  raw_query(o.db_path, "INSERT INTO jobs(kind, state) VALUES('protect', 'running')", &err);
+  EXPECT_NE(err.find("CHECK"), std::string::npos) << "running without a lease: " << err;
+}
