@@ -37,10 +37,18 @@ class ModFeatureQuadricT : public OpenMesh::Decimater::ModBaseT<MeshT> {
   explicit ModFeatureQuadricT(MeshT& mesh) : Base(mesh, false) {
     mesh.add_property(quadric_);
     mesh.add_property(chain_);
+    mesh.add_property(importance_);
+    for (auto v : mesh.vertices()) mesh.property(importance_, v) = 1.0;
   }
   ~ModFeatureQuadricT() override {
     Base::mesh().remove_property(quadric_);
     Base::mesh().remove_property(chain_);
+    Base::mesh().remove_property(importance_);
+  }
+
+  void set_importance(const std::vector<double>& per_vertex) {
+    auto& m = Base::mesh();
+    for (auto v : m.vertices()) m.property(importance_, v) = per_vertex[v.idx()];
   }
 
   // chain_of[v] = polyline id of a non-corner crease vertex, -1 otherwise; chain_min[id] = floor.
@@ -99,7 +107,7 @@ class ModFeatureQuadricT : public OpenMesh::Decimater::ModBaseT<MeshT> {
     auto& m = Base::mesh();
     Quadricd q = m.property(quadric_, ci.v0);
     q += m.property(quadric_, ci.v1);
-    double err = q(ci.p1);
+    double err = q(ci.p1) * std::max(m.property(importance_, ci.v0), m.property(importance_, ci.v1));
     return static_cast<float>(std::max(err, 0.0));
   }
 
@@ -117,6 +125,8 @@ class ModFeatureQuadricT : public OpenMesh::Decimater::ModBaseT<MeshT> {
   void postprocess_collapse(const CollapseInfo& ci) override {
     auto& m = Base::mesh();
     m.property(quadric_, ci.v1) += m.property(quadric_, ci.v0);
+    m.property(importance_, ci.v1) =
+        std::max(m.property(importance_, ci.v1), m.property(importance_, ci.v0));
     for (auto vx : merged_) {
       auto h = m.find_halfedge(ci.v1, vx);
       if (h.is_valid()) m.status(m.edge_handle(h)).set_feature(true);
@@ -138,6 +148,7 @@ class ModFeatureQuadricT : public OpenMesh::Decimater::ModBaseT<MeshT> {
 
   OpenMesh::VPropHandleT<Quadricd> quadric_;
   OpenMesh::VPropHandleT<int> chain_;
+  OpenMesh::VPropHandleT<double> importance_;
   std::vector<int> chain_min_, chain_count_;
   std::vector<std::vector<OMesh::VertexHandle>> members_;
   std::vector<OMesh::VertexHandle> merged_;
@@ -210,6 +221,13 @@ ControlPolyhedron build_control_polyhedron(const Mesh& mesh, const Features& fea
     dec.module(hn).set_max_normal_deviation(options.max_normal_deviation_degrees);
     if (!dec.initialize()) throw std::logic_error("decimater modules failed to initialise");
     dec.module(hq).set_chains(chain_of, chain_min);
+    if (!options.importance.empty()) {
+      if (static_cast<int>(options.importance.size()) != n)
+        throw std::invalid_argument("importance must have one value per vertex");
+      std::vector<double> imp(om.n_vertices());
+      for (size_t v = 0; v < imp.size(); ++v) imp[v] = std::max(options.importance[source[v]], 1e-9);
+      dec.module(hq).set_importance(imp);
+    }
     om.update_face_normals();
     dec.decimate_to(static_cast<size_t>(std::max(options.target_vertices, 4)));
   }
@@ -241,6 +259,13 @@ ControlPolyhedron build_control_polyhedron(const Mesh& mesh, const Features& fea
     if (a >= 0 && b >= 0) out.mesh.creases.emplace_back(std::min(a, b), std::max(a, b));
   }
   std::sort(out.mesh.creases.begin(), out.mesh.creases.end());
+  // A crease that fades out into a smooth surface ends in a dart (one crease edge), which the
+  // subdivision rules treat as a smooth vertex; tagging it a corner would pull a spike.
+  std::vector<int> crease_valence(out.mesh.num_vertices(), 0);
+  for (auto [a, b] : out.mesh.creases) ++crease_valence[a], ++crease_valence[b];
+  out.mesh.corners.erase(std::remove_if(out.mesh.corners.begin(), out.mesh.corners.end(),
+                                        [&](int v) { return crease_valence[v] == 1; }),
+                         out.mesh.corners.end());
   std::sort(out.mesh.corners.begin(), out.mesh.corners.end());
   return out;
 }

@@ -1,0 +1,64 @@
+// Closest-point queries on triangle soups and segment sets (CGAL AABB trees), returning which
+// primitive was hit and where on it, so a hit can be expressed in the primitive's vertices.
+#pragma once
+#include <Eigen/Core>
+#include <array>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include "meshio/mesh.h"
+
+namespace mm {
+
+struct TriangleHit {
+  int triangle = -1;              // index into the triangles given to the index
+  Eigen::Vector3d point;          // closest point
+  Eigen::Vector3d barycentric;    // weights of the triangle's three vertices
+  double distance = 0;
+};
+
+struct SegmentHit {
+  int segment = -1;
+  Eigen::Vector3d point;
+  double t = 0;                   // point = (1 - t) * a + t * b
+  double distance = 0;
+};
+
+class TriangleIndex {
+ public:
+  // Triangles as vertex index triples into `points`; degenerate ones are left out of the tree.
+  TriangleIndex(const Points& points, std::vector<std::array<int, 3>> triangles);
+  ~TriangleIndex();
+  TriangleIndex(const TriangleIndex&) = delete;
+  TriangleIndex& operator=(const TriangleIndex&) = delete;
+  bool empty() const;
+  TriangleHit closest(const Eigen::Vector3d& q) const;
+  const std::array<int, 3>& triangle(int t) const { return triangles_[t]; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::vector<std::array<int, 3>> triangles_;
+};
+
+class SegmentIndex {
+ public:
+  SegmentIndex(const Points& points, std::vector<std::pair<int, int>> segments);
+  ~SegmentIndex();
+  SegmentIndex(const SegmentIndex&) = delete;
+  SegmentIndex& operator=(const SegmentIndex&) = delete;
+  bool empty() const;
+  SegmentHit closest(const Eigen::Vector3d& q) const;
+  const std::pair<int, int>& segment(int s) const { return segments_[s]; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::vector<std::pair<int, int>> segments_;
+};
+
+// Fan triangulation of every face (triangles and quads alike), as index triples.
+std::vector<std::array<int, 3>> triangle_list(const Mesh& mesh);
+
+}  // namespace mm

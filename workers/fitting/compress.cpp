@@ -1,0 +1,101 @@
+#include "fitting/compress.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "fitting/control_polyhedron.h"
+#include "fitting/segmentation.h"
+#include "fitting/sharp_features.h"
+
+namespace mm {
+namespace {
+
+void validate(const Mesh& mesh, const CompressOptions& o, const std::string& source) {
+  if (mesh.num_vertices() < 3) throw InputError(source, "fewer than 3 vertices");
+  if (mesh.faces.empty()) throw InputError(source, "no faces");
+  if (!mesh.points.allFinite()) throw InputError(source, "non-finite vertex coordinates");
+  for (const auto& f : mesh.faces) {
+    if (f.size() < 3) throw InputError(source, "a face has fewer than 3 vertices");
+    for (int v : f)
+      if (v < 0 || v >= mesh.num_vertices()) throw InputError(source, "face index out of range");
+  }
+  if (!(o.tolerance > 0) || !(o.max_vertices >= 4) || o.levels < 1 || o.levels > 5 ||
+      !(o.angle_degrees > 0 && o.angle_degrees < 180) || o.max_rounds < 1)
+    throw std::invalid_argument("compress: options out of range");
+}
+
+}  // namespace
+
+CompressResult compress(const Mesh& input, const CompressOptions& o, const std::string& source) {
+  validate(input, o, source);
+  CompressResult out;
+  out.levels = o.levels;
+  out.input_vertices = input.num_vertices();
+  Mesh mesh = input;
+  mesh.creases.clear();
+  mesh.corners.clear();
+  try {
+    out.normalization = unit_box_normalization(mesh.points);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(source, e.what());
+  }
+  apply(out.normalization, mesh.points);
+
+  FeatureOptions fo;
+  fo.angle_degrees = o.angle_degrees;
+  const Features features = detect_features(mesh, fo);
+  const Segmentation seg = segment(mesh, features);
+  out.sharp_edges = static_cast<int>(features.sharp_edges.size());
+  out.corners = static_cast<int>(features.corners.size());
+  out.patches = seg.num_patches;
+
+  ControlOptions co;
+  // Start small: corners plus a little per crease polyline and per patch, within the budget.
+  co.target_vertices = std::min(
+      o.max_vertices, std::max(24, static_cast<int>(features.corners.size() +
+                                                    2 * seg.polylines.size() + 2 * seg.num_patches)));
+  co.importance.assign(mesh.num_vertices(), 1.0);
+  FitOptions fit;
+  fit.levels = o.levels;
+
+  bool have = false;
+  FitResult best;
+  for (int round = 0; round < o.max_rounds; ++round) {
+    ++out.rounds;
+    auto control = build_control_polyhedron(mesh, features, seg, co);
+    auto result = fit_control_points(control.mesh, mesh, features, fit);
+    const double rel = result.stats.hausdorff / result.stats.diagonal;
+    const bool fits = rel <= o.tolerance;
+    const bool improved = !have || result.stats.hausdorff < best.stats.hausdorff;
+    if (improved || fits) {
+      best = std::move(result);
+      have = true;
+    }
+    if (fits) {
+      out.tolerance_met = true;
+      break;
+    }
+    // At the budget, rounds only move vertices around; stop once that stops helping.
+    if (control.mesh.num_vertices() >= o.max_vertices && !improved && round > 0) break;
+    // Spend more vertices where the surface is still too far, and a few more overall.
+    const double limit = o.tolerance * best.stats.diagonal;
+    const auto& err = best.target_error;
+    for (size_t v = 0; v < err.size(); ++v)
+      if (err[v] > limit) co.importance[v] *= 1.0 + 8.0 * std::min(err[v] / limit, 4.0);
+    const double grow = std::clamp(std::sqrt(rel / o.tolerance), 1.15, 2.0);
+    co.target_vertices = std::min(o.max_vertices, static_cast<int>(std::ceil(co.target_vertices * grow)));
+  }
+
+  out.control = best.control;
+  out.stats = best.stats;
+  // Back to the part's units.
+  undo(out.normalization, out.control.points);
+  out.stats.hausdorff /= out.normalization.scale;
+  out.stats.rms /= out.normalization.scale;
+  out.stats.mean /= out.normalization.scale;
+  out.stats.diagonal /= out.normalization.scale;
+  return out;
+}
+
+}  // namespace mm

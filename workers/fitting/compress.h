@@ -1,0 +1,36 @@
+// Compression of a CAD mesh into a subdivision control polyhedron (the paper's section III):
+// normalise into the unit box, find the sharp-feature network, decimate to a feature-preserving
+// control mesh, fit its points by least squares, and where the error stays above the tolerance
+// spend more control vertices there and fit again, until the tolerance or the vertex budget is
+// reached. Deterministic: the same input and options give the same control mesh.
+#pragma once
+#include "fitting/fit_control_points.h"
+#include "meshio/mesh.h"
+#include "meshio/normalize.h"
+
+namespace mm {
+
+struct CompressOptions {
+  double tolerance = 0.005;     // target symmetric Hausdorff distance / bounding box diagonal
+  int max_vertices = 1000;      // control vertex budget
+  int levels = 3;               // subdivision levels the fit is measured at
+  double angle_degrees = 35.0;  // dihedral angle above which an edge is a crease
+  int max_rounds = 6;           // decimate-and-fit rounds at most
+};
+
+struct CompressResult {
+  Mesh control;                 // in the input's units; creases and corners tagged
+  int levels = 3;
+  Normalization normalization;  // the unit-box transform the fit was done in
+  FitStats stats;               // relative numbers: stats.x / stats.diagonal
+  bool tolerance_met = false;
+  int rounds = 0;
+  int input_vertices = 0, sharp_edges = 0, corners = 0, patches = 0;
+};
+
+// Throws InputError(source, reason) for meshes that cannot be compressed (empty, no faces,
+// degenerate bounding box, non-finite coordinates, out-of-range indices).
+CompressResult compress(const Mesh& mesh, const CompressOptions& options = {},
+                        const std::string& source = "mesh");
+
+}  // namespace mm

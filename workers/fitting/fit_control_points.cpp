@@ -1,0 +1,274 @@
+#include "fitting/fit_control_points.h"
+
+#include <Eigen/Geometry>
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <random>
+#include <set>
+#include <stdexcept>
+
+#include "fitting/closest_point.h"
+#include "subdivision/subdivide.h"
+
+namespace mm {
+namespace {
+
+using SpMat = Eigen::SparseMatrix<double, Eigen::RowMajor>;
+using Trip = Eigen::Triplet<double>;
+
+// Deterministic uniform double in [0, 1) independent of the standard library's distributions.
+double uniform(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
+
+// Target samples: every vertex, area-weighted random points on faces, and points along the
+// sharp edges (those are matched against the subdivided creases).
+struct TargetSamples {
+  std::vector<Eigen::Vector3d> surface, crease;
+};
+
+TargetSamples sample_target(const Mesh& target, const std::vector<std::array<int, 3>>& tris,
+                            const Features& features, const FitOptions& o) {
+  TargetSamples s;
+  for (int v = 0; v < target.num_vertices(); ++v) s.surface.push_back(target.points.row(v));
+  std::vector<double> cumulative;
+  double total = 0;
+  for (const auto& t : tris) {
+    Eigen::Vector3d a = target.points.row(t[0]), b = target.points.row(t[1]), c = target.points.row(t[2]);
+    total += 0.5 * (b - a).cross(c - a).norm();
+    cumulative.push_back(total);
+  }
+  std::mt19937_64 rng(o.seed);
+  if (total > 0)
+    for (int k = 0; k < o.area_samples; ++k) {
+      double r = uniform(rng) * total;
+      size_t t = std::min(cumulative.size() - 1,
+                          static_cast<size_t>(std::upper_bound(cumulative.begin(), cumulative.end(), r) -
+                                              cumulative.begin()));
+      double u = uniform(rng), v = uniform(rng);
+      if (u + v > 1) u = 1 - u, v = 1 - v;
+      const auto& f = tris[t];
+      Eigen::Vector3d a = target.points.row(f[0]), b = target.points.row(f[1]), c = target.points.row(f[2]);
+      s.surface.push_back(a + u * (b - a) + v * (c - a));
+    }
+  // Crease samples: vertices plus three interior points per sharp edge.
+  std::set<int> crease_vertices;
+  for (auto [a, b] : features.sharp_edges) {
+    crease_vertices.insert(a);
+    crease_vertices.insert(b);
+    Eigen::Vector3d pa = target.points.row(a), pb = target.points.row(b);
+    for (double t : {0.25, 0.5, 0.75}) s.crease.push_back((1 - t) * pa + t * pb);
+  }
+  for (int v : crease_vertices) s.crease.push_back(target.points.row(v));
+  return s;
+}
+
+// Edges of the refined mesh that act as creases: tagged creases plus open boundary edges.
+std::vector<std::pair<int, int>> crease_edges(const Mesh& m) {
+  std::map<std::pair<int, int>, int> count;
+  for (const auto& f : m.faces)
+    for (size_t k = 0; k < f.size(); ++k) {
+      int a = f[k], b = f[(k + 1) % f.size()];
+      ++count[{std::min(a, b), std::max(a, b)}];
+    }
+  std::set<std::pair<int, int>> out(m.creases.begin(), m.creases.end());
+  for (const auto& [e, n] : count)
+    if (n == 1) out.insert(e);
+  return {out.begin(), out.end()};
+}
+
+// Umbrella Laplacian of the control mesh; crease vertices only see their crease neighbours
+// (their limit curve depends on those alone) and corners are left free.
+SpMat umbrella(const Mesh& control, const std::vector<std::pair<int, int>>& creases) {
+  const int n = control.num_vertices();
+  std::vector<std::set<int>> all(n), crease(n);
+  for (auto [a, b] : unique_edges(control)) {
+    all[a].insert(b);
+    all[b].insert(a);
+  }
+  for (auto [a, b] : creases) {
+    crease[a].insert(b);
+    crease[b].insert(a);
+  }
+  std::vector<char> corner(n, 0);
+  for (int c : control.corners) corner[c] = 1;
+  std::vector<Trip> t;
+  for (int v = 0; v < n; ++v) {
+    if (corner[v]) continue;
+    const auto& nb = crease[v].empty() ? all[v] : crease[v];
+    if (nb.empty()) continue;
+    t.emplace_back(v, v, 1.0);
+    for (int w : nb) t.emplace_back(v, w, -1.0 / static_cast<double>(nb.size()));
+  }
+  SpMat L(n, n);
+  L.setFromTriplets(t.begin(), t.end());
+  return L;
+}
+
+struct Correspondences {
+  std::vector<Trip> B;                 // rows over refined vertices
+  std::vector<Eigen::Vector3d> rhs;
+  std::vector<double> weight;
+  std::vector<double> surface_dist;    // for statistics (surface terms only)
+  std::vector<int> blame;              // per row: refined vertex mostly responsible
+  int rows = 0;
+  void add(std::initializer_list<std::pair<int, double>> terms, const Eigen::Vector3d& p, double w,
+           double dist, bool stat) {
+    int best = -1;
+    double bw = -1;
+    for (auto [v, c] : terms) {
+      if (c == 0) continue;
+      B.emplace_back(rows, v, c);
+      if (c > bw) bw = c, best = v;
+    }
+    rhs.push_back(p);
+    weight.push_back(w);
+    blame.push_back(best);
+    if (stat) surface_dist.push_back(dist);
+    ++rows;
+  }
+};
+
+Correspondences correspond(const Points& R, const Mesh& refined,
+                           const std::vector<std::pair<int, int>>& refined_creases,
+                           const TargetSamples& samples, const TriangleIndex& target_tris,
+                           const SegmentIndex& target_creases, const FitOptions& o,
+                           bool with_creases) {
+  Correspondences c;
+  TriangleIndex surf(R, triangle_list(refined));
+  SegmentIndex crease(R, refined_creases);
+  std::vector<char> on_crease(R.rows(), 0);
+  for (auto [a, b] : refined_creases) on_crease[a] = on_crease[b] = 1;
+  if (!surf.empty())
+    for (const auto& p : samples.surface) {
+      auto h = surf.closest(p);
+      const auto& t = surf.triangle(h.triangle);
+      c.add({{t[0], h.barycentric[0]}, {t[1], h.barycentric[1]}, {t[2], h.barycentric[2]}}, p, 1.0,
+            h.distance, true);
+    }
+  if (!target_tris.empty())
+    for (Eigen::Index v = 0; v < R.rows(); ++v) {
+      if (with_creases && on_crease[v] && !target_creases.empty()) {
+        auto h = target_creases.closest(R.row(v).transpose());
+        c.add({{static_cast<int>(v), 1.0}}, h.point, o.crease_weight, h.distance, false);
+      }
+      auto h = target_tris.closest(R.row(v).transpose());
+      c.add({{static_cast<int>(v), 1.0}}, h.point, 1.0, h.distance, true);
+    }
+  if (with_creases && !crease.empty())
+    for (const auto& p : samples.crease) {
+      auto h = crease.closest(p);
+      auto [a, b] = crease.segment(h.segment);
+      c.add({{a, 1 - h.t}, {b, h.t}}, p, o.crease_weight, h.distance, false);
+    }
+  return c;
+}
+
+FitStats stats_of(const std::vector<double>& d, double diagonal) {
+  FitStats s;
+  s.diagonal = diagonal;
+  double sum = 0, sum2 = 0;
+  for (double x : d) {
+    s.hausdorff = std::max(s.hausdorff, x);
+    sum += x;
+    sum2 += x * x;
+  }
+  if (!d.empty()) {
+    s.mean = sum / static_cast<double>(d.size());
+    s.rms = std::sqrt(sum2 / static_cast<double>(d.size()));
+  }
+  return s;
+}
+
+double diagonal_of(const Points& p) {
+  if (p.rows() == 0) return 0;
+  return (p.colwise().maxCoeff() - p.colwise().minCoeff()).norm();
+}
+
+}  // namespace
+
+FitResult fit_control_points(const Mesh& control, const Mesh& target, const Features& features,
+                             const FitOptions& o) {
+  if (control.num_vertices() == 0 || control.faces.empty())
+    throw std::invalid_argument("control mesh is empty");
+  const auto op = build_subdivision(control, o.levels);
+  const auto refined_creases = crease_edges(op.refined);
+  const auto target_tris_list = triangle_list(target);
+  const TriangleIndex target_tris(target.points, target_tris_list);
+  const SegmentIndex target_creases(target.points, features.sharp_edges);
+  const auto samples = sample_target(target, target_tris_list, features, o);
+  const bool with_creases = !target_creases.empty();
+
+  std::set<std::pair<int, int>> control_creases(control.creases.begin(), control.creases.end());
+  for (const auto& e : crease_edges(control)) control_creases.insert(e);
+  const SpMat L = umbrella(control, {control_creases.begin(), control_creases.end()});
+  const Eigen::SparseMatrix<double> LtL = Eigen::SparseMatrix<double>(L.transpose()) * Eigen::SparseMatrix<double>(L);
+
+  const int n = control.num_vertices();
+  Eigen::MatrixXd X = control.points;
+  for (int it = 0; it < o.iterations; ++it) {
+    Points R = op.S * X;
+    auto c = correspond(R, op.refined, refined_creases, samples, target_tris, target_creases, o,
+                        with_creases);
+    SpMat B(c.rows, op.S.rows());
+    B.setFromTriplets(c.B.begin(), c.B.end());
+    SpMat A = B * op.S;
+    Eigen::VectorXd w = Eigen::Map<Eigen::VectorXd>(c.weight.data(), c.rows);
+    Eigen::MatrixXd P(c.rows, 3);
+    for (int r = 0; r < c.rows; ++r) P.row(r) = c.rhs[r];
+    SpMat AtW = A.transpose() * w.asDiagonal();
+    Eigen::SparseMatrix<double> M = AtW * A;
+    const double scale = w.sum() / n;  // data weight per control vertex
+    M += (o.smoothness * scale) * LtL;
+    // A tiny pull towards the current positions keeps vertices without data well-posed.
+    Eigen::SparseMatrix<double> I(n, n);
+    I.setIdentity();
+    M += (1e-6 * scale) * I;
+    Eigen::MatrixXd rhs = AtW * P + (1e-6 * scale) * X;
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(M);
+    if (solver.info() != Eigen::Success) throw std::runtime_error("fitting system is singular");
+    Eigen::MatrixXd Xn = solver.solve(rhs);
+    if (!Xn.allFinite()) throw std::runtime_error("fitting produced non-finite positions");
+    X = Xn;
+  }
+
+  FitResult out;
+  out.control = control;
+  out.control.points = X;
+  Points R = op.S * X;
+  auto c = correspond(R, op.refined, refined_creases, samples, target_tris, target_creases, o, false);
+  out.stats = stats_of(c.surface_dist, diagonal_of(target.points));
+  // The first rows are the target vertices (sample_target puts them first).
+  if (c.surface_dist.size() >= static_cast<size_t>(target.num_vertices()))
+    out.target_error.assign(c.surface_dist.begin(), c.surface_dist.begin() + target.num_vertices());
+  // Blame each distance on the control vertex with the largest weight in the refined vertex's row.
+  out.vertex_error.assign(n, 0.0);
+  std::vector<int> owner(op.S.rows(), -1);
+  for (int r = 0; r < op.S.rows(); ++r) {
+    double best = -1;
+    for (SpMat::InnerIterator itr(op.S, r); itr; ++itr)
+      if (itr.value() > best) best = itr.value(), owner[r] = static_cast<int>(itr.col());
+  }
+  for (int r = 0; r < c.rows; ++r)
+    if (c.blame[r] >= 0 && owner[c.blame[r]] >= 0) {
+      double& e = out.vertex_error[owner[c.blame[r]]];
+      e = std::max(e, c.surface_dist[r]);
+    }
+  return out;
+}
+
+FitStats measure_fit(const Mesh& control, int levels, const Mesh& target) {
+  const auto op = build_subdivision(control, levels);
+  Points R = op.S * control.points;
+  const auto tris = triangle_list(target);
+  const TriangleIndex target_tris(target.points, tris);
+  const SegmentIndex none(target.points, {});
+  FitOptions o;
+  Features no_features;
+  auto samples = sample_target(target, tris, no_features, o);
+  auto c = correspond(R, op.refined, {}, samples, target_tris, none, o, false);
+  return stats_of(c.surface_dist, diagonal_of(target.points));
+}
+
+}  // namespace mm

@@ -1,0 +1,46 @@
+// Least-squares fitting of control point positions so that the subdivided surface approximates a
+// target mesh (the paper's approximation step, section III-B). The control topology (faces,
+// creases, corners) is fixed; only positions move. Each iteration builds closest-point
+// correspondences in both directions -- target samples to the subdivided surface and subdivided
+// vertices to the target, so neither thin features nor overshoot are missed -- with crease points
+// matched against the target's sharp edges only, then solves one sparse linear system for x, y, z.
+#pragma once
+#include <cstdint>
+
+#include "fitting/sharp_features.h"
+#include "meshio/mesh.h"
+
+namespace mm {
+
+struct FitOptions {
+  int levels = 3;             // subdivision levels of the surface being fitted
+  int iterations = 8;         // correspondence / solve rounds
+  int area_samples = 8000;    // random target surface samples added to the target vertices
+  double crease_weight = 4.0; // weight of crease correspondences relative to surface ones
+  double smoothness = 1e-4;   // umbrella-Laplacian regularisation (relative to the data term)
+  std::uint64_t seed = 1;     // sampling is deterministic for a given seed
+};
+
+// Distances between the subdivided surface and the target, in the target's units.
+struct FitStats {
+  double hausdorff = 0;  // max of both one-sided maxima (sample based)
+  double rms = 0;        // root mean square of both directions' distances
+  double mean = 0;
+  double diagonal = 0;   // target bounding box diagonal: divide by it for relative numbers
+};
+
+struct FitResult {
+  Mesh control;                       // same topology as the input control, fitted positions
+  FitStats stats;
+  std::vector<double> vertex_error;   // per control vertex: largest distance it is responsible for
+  std::vector<double> target_error;   // per target vertex: distance to the subdivided surface
+};
+
+// `target_features` are the target's (sharp edges give the crease samples).
+FitResult fit_control_points(const Mesh& control, const Mesh& target,
+                             const Features& target_features, const FitOptions& options = {});
+
+// The same distance statistics for a given control mesh, without moving anything.
+FitStats measure_fit(const Mesh& control, int levels, const Mesh& target);
+
+}  // namespace mm
