@@ -1,19 +1,45 @@
 // Stam & Loop quad/triangle subdivision with infinitely sharp creases and corners (Loop rules on
 // triangles, Catmull-Clark on quads), as a sparse linear operator built once per topology:
 // refined points = S * control points. Same operator for every customer copy of an asset.
+//
+// Rules, weights and vertex ordering: docs/subdivision.md. In short, each step numbers the
+// refined vertices [children of vertices (same index as the parent), face points of non-triangle
+// faces (face order), edge points (edge order)], exactly as OpenSubdiv 3.5 numbers its uniform
+// refinement levels, so on all-triangle (all-quad) meshes S equals OpenSubdiv's Loop
+// (Catmull-Clark) stencils row for row. Boundary edges act as infinitely sharp creases
+// (OpenSubdiv's VTX_BOUNDARY_EDGE_ONLY). Polygons with more than 4 sides get a Catmull-Clark
+// split in their first step. Non-manifold edges, inconsistent orientation and bad indices are
+// rejected with mm::InputError; non-manifold vertices (several fans) are kept fixed as corners.
 #pragma once
 #include <Eigen/Sparse>
+#include <vector>
 
 #include "meshio/mesh.h"
 
 namespace mm {
 
+using SparseOperator = Eigen::SparseMatrix<double, Eigen::RowMajor>;
+
 struct SubdivisionOperator {
-  Eigen::SparseMatrix<double, Eigen::RowMajor> S;  // refined_vertices x control_vertices
-  Mesh refined;  // topology after `levels` steps (points = S * control points), creases carried
+  SparseOperator S;  // refined_vertices x control_vertices
+  Mesh refined;      // topology after `levels` steps (points = S * control points), creases carried
+  // One matrix per step (steps[k] maps level k to level k+1), S = steps[L-1] * ... * steps[0].
+  // Applying the steps one after another is several times cheaper than applying S.
+  std::vector<SparseOperator> steps;
 };
 
+// Largest accepted number of steps and refined vertices (a guard against over-allocation).
+constexpr int kMaxSubdivisionLevels = 8;
+constexpr long long kMaxRefinedVertices = 20'000'000;
+
+// Throws mm::InputError (source "subdivision control mesh") for out-of-range indices, faces with
+// fewer than 3 or repeated vertices, edges shared by more than two faces or traversed twice in the
+// same direction, creases that are not edges, corners out of range, non-finite points;
+// std::invalid_argument for levels outside [0, kMaxSubdivisionLevels] or a too large result.
 SubdivisionOperator build_subdivision(const Mesh& control, int levels);
+
+// Refined positions for new control points of the same topology (faster than op.S * points).
+Points apply_subdivision(const SubdivisionOperator& op, const Points& control_points);
 
 // Convenience: the refined mesh with positions.
 Mesh subdivide(const Mesh& control, int levels);

@@ -1,0 +1,283 @@
+// Properties of the quad/triangle operator that hold on any mesh, in particular mixed ones where no
+// oracle exists: watertightness, vertex counts, affine invariance, planarity, straight creases,
+// smoothing, and clean rejection of bad input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+
+#include "common/shared_meshes.h"
+#include "meshio/read_mesh.h"
+#include "subdivision/subdivide.h"
+#include "subdivision/test_meshes.h"
+
+namespace mm {
+namespace {
+
+using mm::test::cube;
+using mm::test::grid;
+using mm::test::jittered;
+using mm::test::make_mesh;
+using mm::test::tetrahedron;
+
+// Each undirected edge used by exactly two faces, once in each direction.
+::testing::AssertionResult watertight(const Mesh& m) {
+  std::map<std::pair<int, int>, int> directed;
+  for (const auto& f : m.faces)
+    for (size_t k = 0; k < f.size(); ++k) ++directed[{f[k], f[(k + 1) % f.size()]}];
+  for (const auto& [e, n] : directed) {
+    if (n != 1) return ::testing::AssertionFailure() << "directed edge used " << n << " times";
+    if (!directed.count({e.second, e.first}))
+      return ::testing::AssertionFailure() << "edge " << e.first << "-" << e.second << " has no twin";
+  }
+  return ::testing::AssertionSuccess();
+}
+
+// A closed mixed mesh: a cube with its top face replaced by four triangles around an apex.
+Mesh mixed_house() {
+  Mesh m = cube();
+  m.faces.erase(m.faces.begin() + 1);  // top {4,5,6,7}
+  m.points.conservativeResize(9, 3);
+  m.points.row(8) << 0, 0, 2;
+  for (auto [a, b] : std::vector<std::pair<int, int>>{{4, 5}, {5, 6}, {6, 7}, {7, 4}}) m.faces.push_back({a, b, 8});
+  return jittered(m, 0.03);
+}
+
+double max_dihedral_degrees(const Mesh& m) {
+  std::map<std::pair<int, int>, std::vector<Eigen::Vector3d>> normals;
+  for (const auto& f : m.faces) {
+    Eigen::Vector3d n = Eigen::Vector3d::Zero();
+    const int s = static_cast<int>(f.size());
+    for (int k = 0; k < s; ++k)
+      n += Eigen::Vector3d(m.points.row(f[k])).cross(Eigen::Vector3d(m.points.row(f[(k + 1) % s])));
+    n.normalize();
+    for (int k = 0; k < s; ++k)
+      normals[{std::min(f[k], f[(k + 1) % s]), std::max(f[k], f[(k + 1) % s])}].push_back(n);
+  }
+  double worst = 0;
+  for (const auto& [e, ns] : normals)
+    if (ns.size() == 2) worst = std::max(worst, std::acos(std::clamp(ns[0].dot(ns[1]), -1.0, 1.0)));
+  return worst * 180.0 / M_PI;
+}
+
+TEST(Subdivision, LevelZeroIsIdentity) {
+  const Mesh m = mixed_house();
+  const SubdivisionOperator op = build_subdivision(m, 0);
+  EXPECT_EQ(op.refined.faces, m.faces);
+  EXPECT_EQ((op.refined.points - m.points).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_TRUE(op.steps.empty());
+}
+
+TEST(Subdivision, MixedMeshIsWatertightWithExpectedCounts) {
+  Mesh m = mixed_house();
+  ASSERT_TRUE(watertight(m));
+  for (int level = 1; level <= 3; ++level) {
+    const Mesh prev = subdivide(m, level - 1);
+    const SubdivisionOperator op = build_subdivision(m, level);
+    EXPECT_TRUE(watertight(op.refined)) << "level " << level;
+    int quads = 0, tris = 0;
+    for (const auto& f : prev.faces) (f.size() == 3 ? tris : quads)++;
+    const int edges = static_cast<int>(unique_edges(prev).size());
+    // V' = V + (non-triangle faces) + E; triangles give 4 triangles, quads 4 quads.
+    EXPECT_EQ(op.refined.num_vertices(), prev.num_vertices() + quads + edges);
+    EXPECT_EQ(op.refined.num_faces(), 4 * (tris + quads));
+    // Euler characteristic of a sphere is kept.
+    EXPECT_EQ(op.refined.num_vertices() - static_cast<int>(unique_edges(op.refined).size()) +
+                  op.refined.num_faces(), 2);
+  }
+}
+
+TEST(Subdivision, RowsSumToOneAndAreConvex) {
+  Mesh m = mixed_house();
+  m.creases = {{0, 1}, {1, 2}, {2, 3}};
+  m.corners = {8};
+  const SubdivisionOperator op = build_subdivision(m, 3);
+  for (int r = 0; r < op.S.rows(); ++r) {
+    double sum = 0, neg = 0;
+    for (SparseOperator::InnerIterator it(op.S, r); it; ++it) {
+      sum += it.value();
+      neg = std::min(neg, it.value());
+    }
+    ASSERT_NEAR(sum, 1.0, 1e-12) << "row " << r;
+    // All rules here (no valence-2 Catmull-Clark vertex) have non-negative weights.
+    ASSERT_GE(neg, 0.0) << "row " << r;
+  }
+  // Tagged corners do not move; steps compose to S.
+  EXPECT_EQ(op.refined.points.row(8), m.points.row(8));
+  const Points via_steps = apply_subdivision(op, m.points);
+  EXPECT_LT((via_steps - op.refined.points).cwiseAbs().maxCoeff(), 1e-12);
+}
+
+TEST(Subdivision, PlanarMixedInputStaysPlanar) {
+  // Grid with alternate quads split into triangles, in a tilted plane.
+  Mesh g = grid(5, 4);
+  Mesh m = g;
+  m.faces.clear();
+  for (size_t i = 0; i < g.faces.size(); ++i) {
+    const auto& f = g.faces[i];
+    if (i % 3 == 1) {
+      m.faces.push_back({f[0], f[1], f[2]});
+      m.faces.push_back({f[0], f[2], f[3]});
+    } else {
+      m.faces.push_back(f);
+    }
+  }
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-0.2, 0.2);
+  const Eigen::Vector3d n = Eigen::Vector3d(0.3, -0.5, 1.0).normalized();
+  for (int i = 0; i < m.num_vertices(); ++i) {
+    Eigen::Vector3d p(m.points(i, 0) + u(rng), m.points(i, 1) + u(rng), 0);
+    p -= n * (n.dot(p) - 0.7);  // project onto the plane n.x = 0.7
+    m.points.row(i) = p.transpose();
+  }
+  const Mesh r = subdivide(m, 3);
+  double off = 0;
+  for (int i = 0; i < r.num_vertices(); ++i) off = std::max(off, std::abs(n.dot(Eigen::Vector3d(r.points.row(i))) - 0.7));
+  EXPECT_LT(off, 1e-12);
+}
+
+TEST(Subdivision, StraightCreaseStaysStraight) {
+  // A folded mixed sheet: the fold line y = 2 is a crease polyline (x = 0..4) with corners at both
+  // ends (boundary + crease). Refined crease vertices must stay on the line.
+  Mesh g = grid(4, 4);
+  Mesh m = g;
+  m.faces.clear();
+  for (size_t i = 0; i < g.faces.size(); ++i) {
+    const auto& f = g.faces[i];
+    if (i % 2) {
+      m.faces.push_back({f[0], f[1], f[3]});
+      m.faces.push_back({f[1], f[2], f[3]});
+    } else {
+      m.faces.push_back(f);
+    }
+  }
+  for (int i = 0; i < m.num_vertices(); ++i) m.points(i, 2) = std::abs(m.points(i, 1) - 2.0) * 0.8;
+  for (int i = 0; i < 4; ++i) m.creases.emplace_back(10 + i, 11 + i);  // row y = 2 is vertices 10..14
+  m.points(12, 0) += 0.3;  // uneven spacing along the line, still on it
+  const SubdivisionOperator op = build_subdivision(m, 3);
+  ASSERT_EQ(op.refined.creases.size(), 4u * 8u);
+  for (const auto& [a, b] : op.refined.creases)
+    for (int v : {a, b}) {
+      EXPECT_NEAR(op.refined.points(v, 1), 2.0, 1e-12);
+      EXPECT_NEAR(op.refined.points(v, 2), 0.0, 1e-12);
+      EXPECT_GE(op.refined.points(v, 0), -1e-12);
+      EXPECT_LE(op.refined.points(v, 0), 4.0 + 1e-12);
+    }
+  // Ends of the polyline are on the boundary: corners, so they stay put.
+  EXPECT_EQ(op.refined.points.row(10), m.points.row(10));
+  EXPECT_EQ(op.refined.points.row(14), m.points.row(14));
+}
+
+TEST(Subdivision, MixedSurfaceGetsSmoother) {
+  // Tangent continuity: the largest angle between neighbouring faces must shrink geometrically
+  // with the level (by the subdominant eigenvalue at the worst vertex), towards 0.
+  const Mesh m = mixed_house();
+  std::vector<double> a;
+  for (int level = 1; level <= 6; ++level) a.push_back(max_dihedral_degrees(subdivide(m, level)));
+  std::printf("[smooth] mixed house max dihedral by level 1..6:");
+  for (double x : a) std::printf(" %.2f", x);
+  std::printf(" degrees\n");
+  for (size_t k = 2; k < a.size(); ++k) EXPECT_LT(a[k], 0.8 * a[k - 1]) << "level " << k + 1;
+  EXPECT_LT(a.back(), 5.0);
+}
+
+TEST(Subdivision, ChamferCubeMixedSanity) {
+  MM_REQUIRE_SHARED_MESHES();
+  const Mesh m = read_mesh(mm::test::shared_mesh("chamfer-cube.off"));
+  int tris = 0;
+  for (const auto& f : m.faces) tris += f.size() == 3;
+  ASSERT_GT(tris, 0);
+  ASSERT_LT(tris, m.num_faces());
+  const SubdivisionOperator op = build_subdivision(m, 3);
+  EXPECT_TRUE(watertight(op.refined));
+  for (int r = 0; r < op.S.rows(); ++r) ASSERT_NEAR(op.S.row(r).sum(), 1.0, 1e-12);
+  // Symmetric input, symmetric output: the mesh is centred, so the refined centroid stays ~0.
+  EXPECT_LT(op.refined.points.colwise().mean().cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_LT(max_dihedral_degrees(subdivide(m, 4)), 0.6 * max_dihedral_degrees(subdivide(m, 2)));
+}
+
+TEST(Subdivision, CreasesAndCornersAreCarried) {
+  Mesh m = cube();
+  m.creases = {{4, 5}, {5, 6}};
+  m.corners = {0, 0, 3};
+  const Mesh r = subdivide(m, 2);
+  EXPECT_EQ(r.creases.size(), 8u);
+  EXPECT_EQ(r.corners, (std::vector<int>{0, 3}));
+  for (const auto& [a, b] : r.creases) EXPECT_LT(a, b);
+}
+
+TEST(Subdivision, NonManifoldVertexIsKeptFixed) {
+  // Two tetrahedra touching at one vertex: manifold edges, a non-manifold vertex.
+  Mesh a = tetrahedron(), m = tetrahedron();
+  m.points.conservativeResize(7, 3);
+  for (int i = 1; i < 4; ++i) m.points.row(3 + i) = -a.points.row(i) + 2 * a.points.row(0);
+  for (const auto& f : a.faces) {
+    std::vector<int> g;
+    for (int v : f) g.push_back(v == 0 ? 0 : v + 3);
+    std::reverse(g.begin(), g.end());
+    m.faces.push_back(g);
+  }
+  const Mesh r = subdivide(m, 2);
+  EXPECT_EQ(r.points.row(0), m.points.row(0));
+  EXPECT_TRUE(watertight(r));
+}
+
+void expect_input_error(const Mesh& m, const std::string& fragment) {
+  try {
+    build_subdivision(m, 1);
+    ADD_FAILURE() << "no error for: " << fragment;
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+  }
+}
+
+TEST(Subdivision, RejectsBadInput) {
+  Mesh m = tetrahedron();
+  m.faces[1][2] = 4;
+  expect_input_error(m, "out of range");
+  m = tetrahedron();
+  m.faces[1][2] = -1;
+  expect_input_error(m, "out of range");
+  m = tetrahedron();
+  m.faces[1] = {0, 1};
+  expect_input_error(m, "fewer than 3");
+  m = tetrahedron();
+  m.faces[1] = {0, 3, 3};
+  expect_input_error(m, "repeats vertex");
+  m = tetrahedron();
+  m.faces.push_back({0, 1, 2});
+  expect_input_error(m, "");  // duplicate face: same direction or >2 faces
+  m = tetrahedron();
+  m.points.conservativeResize(5, 3);
+  m.points.row(4) << 3, 3, 3;
+  m.faces.push_back({0, 2, 4});  // third face on edge 0-2 (0-2 is used by faces 0 and 2)
+  m.faces.push_back({2, 1, 4});
+  expect_input_error(m, "non-manifold edge");
+  m = tetrahedron();
+  std::reverse(m.faces[3].begin(), m.faces[3].end());
+  expect_input_error(m, "same direction");
+  m = tetrahedron();
+  m.creases = {{0, 0}};
+  expect_input_error(m, "crease");
+  m = cube();
+  m.creases = {{0, 6}};
+  expect_input_error(m, "not an edge");
+  m = tetrahedron();
+  m.corners = {9};
+  expect_input_error(m, "corner");
+  m = tetrahedron();
+  m.points(2, 1) = std::nan("");
+  expect_input_error(m, "non-finite");
+  m = tetrahedron();
+  m.faces.clear();
+  expect_input_error(m, "no faces");
+  EXPECT_THROW(build_subdivision(tetrahedron(), -1), std::invalid_argument);
+  EXPECT_THROW(build_subdivision(tetrahedron(), kMaxSubdivisionLevels + 1), std::invalid_argument);
+  Mesh big = grid(300, 300);  // 90k quads: level 8 would be ~6e9 vertices
+  EXPECT_THROW(build_subdivision(big, 8), std::invalid_argument);
+  const SubdivisionOperator op = build_subdivision(tetrahedron(), 1);
+  EXPECT_THROW(apply_subdivision(op, Points(3, 3)), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace mm

@@ -1,0 +1,500 @@
+#include "subdivision/subdivide.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace mm {
+namespace {
+
+const char* kSource = "subdivision control mesh";
+constexpr double kPi = 3.14159265358979323846;
+
+// One refinement level in flat arrays. Face sides k go from fverts[k] to fverts[k+1]; fedges[k]
+// is the edge of that side. Edge orientation matters: it orders the edge's two children.
+struct Level {
+  int nv = 0;
+  std::vector<int> foff{0};  // size nf + 1
+  std::vector<int> fverts;
+  std::vector<int> fedges;
+  std::vector<std::array<int, 2>> everts;
+  std::vector<char> ecrease;  // tagged crease (boundary edges are sharp without a tag)
+  std::vector<char> vcorner;  // tagged corner or non-manifold vertex: never moves
+  int nf() const { return static_cast<int>(foff.size()) - 1; }
+  int ne() const { return static_cast<int>(everts.size()); }
+  int fsize(int f) const { return foff[f + 1] - foff[f]; }
+};
+
+// Compressed lists (offsets + items), for vertex-edge and vertex-face incidence.
+struct Csr {
+  std::vector<int> off, items;
+  int size(int i) const { return off[i + 1] - off[i]; }
+  const int* begin(int i) const { return items.data() + off[i]; }
+  const int* end(int i) const { return items.data() + off[i + 1]; }
+};
+
+template <class ForEach>
+Csr build_csr(int n, ForEach for_each_pair) {
+  Csr c;
+  c.off.assign(n + 1, 0);
+  for_each_pair([&](int key, int) { ++c.off[key + 1]; });
+  for (int i = 0; i < n; ++i) c.off[i + 1] += c.off[i];
+  c.items.resize(c.off[n]);
+  std::vector<int> fill(c.off.begin(), c.off.end() - 1);
+  for_each_pair([&](int key, int item) { c.items[fill[key]++] = item; });
+  return c;
+}
+
+std::string edge_name(int a, int b) {
+  return "edge (" + std::to_string(a) + ", " + std::to_string(b) + ")";
+}
+
+// Level 0 from the mesh: validates, numbers edges as OpenSubdiv does (faces in order, each face's
+// sides in order, a new edge takes the orientation of the side that first meets it).
+Level make_base_level(const Mesh& m) {
+  Level L;
+  const int n = m.num_vertices();
+  L.nv = n;
+  if (m.faces.empty()) throw InputError(kSource, "no faces");
+  long long total = 0;
+  for (const auto& f : m.faces) total += static_cast<long long>(f.size());
+  if (total > kMaxRefinedVertices) throw InputError(kSource, "too many face corners");
+  L.foff.reserve(m.faces.size() + 1);
+  L.fverts.reserve(total);
+  for (size_t fi = 0; fi < m.faces.size(); ++fi) {
+    const auto& f = m.faces[fi];
+    const std::string where = "face " + std::to_string(fi);
+    if (f.size() < 3) throw InputError(kSource, where + " has fewer than 3 vertices");
+    for (size_t k = 0; k < f.size(); ++k) {
+      if (f[k] < 0 || f[k] >= n)
+        throw InputError(kSource, where + " has vertex index " + std::to_string(f[k]) +
+                                      " out of range [0, " + std::to_string(n) + ")");
+      for (size_t j = 0; j < k; ++j)
+        if (f[j] == f[k])
+          throw InputError(kSource, where + " repeats vertex " + std::to_string(f[k]));
+      L.fverts.push_back(f[k]);
+    }
+    L.foff.push_back(static_cast<int>(L.fverts.size()));
+  }
+  for (int i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c)
+      if (!std::isfinite(m.points(i, c)))
+        throw InputError(kSource, "vertex " + std::to_string(i) + " has a non-finite coordinate");
+
+  // Edges via per-vertex lists keyed on the smaller endpoint: (other endpoint, edge index).
+  std::vector<std::vector<std::pair<int, int>>> around(n);
+  std::vector<int> uses;      // faces per edge
+  std::vector<int> forward;   // sides traversing the edge as everts[0] -> everts[1]
+  L.fedges.resize(L.fverts.size());
+  for (int f = 0; f < L.nf(); ++f) {
+    const int b = L.foff[f], s = L.fsize(f);
+    for (int k = 0; k < s; ++k) {
+      const int v0 = L.fverts[b + k], v1 = L.fverts[b + (k + 1) % s];
+      auto& list = around[std::min(v0, v1)];
+      const int other = std::max(v0, v1);
+      int e = -1;
+      for (const auto& [o, idx] : list)
+        if (o == other) e = idx;
+      if (e < 0) {
+        e = L.ne();
+        L.everts.push_back({v0, v1});
+        uses.push_back(0);
+        forward.push_back(0);
+        list.emplace_back(other, e);
+      }
+      L.fedges[b + k] = e;
+      if (++uses[e] > 2)
+        throw InputError(kSource, "non-manifold " + edge_name(v0, v1) +
+                                      " is shared by more than two faces");
+      if (L.everts[e][0] == v0 && ++forward[e] > 1)
+        throw InputError(kSource, edge_name(v0, v1) +
+                                      " is traversed twice in the same direction "
+                                      "(inconsistent orientation or duplicate face)");
+      if (L.everts[e][0] != v0 && uses[e] - forward[e] > 1)
+        throw InputError(kSource, edge_name(v0, v1) +
+                                      " is traversed twice in the same direction "
+                                      "(inconsistent orientation or duplicate face)");
+    }
+  }
+  L.ecrease.assign(L.ne(), 0);
+  for (const auto& [a, b] : m.creases) {
+    if (a < 0 || b < 0 || a >= n || b >= n || a == b)
+      throw InputError(kSource, "crease " + edge_name(a, b) + " has invalid vertex indices");
+    int e = -1;
+    for (const auto& [o, idx] : around[std::min(a, b)])
+      if (o == std::max(a, b)) e = idx;
+    if (e < 0) throw InputError(kSource, "crease " + edge_name(a, b) + " is not an edge of the mesh");
+    L.ecrease[e] = 1;
+  }
+  L.vcorner.assign(n, 0);
+  for (int c : m.corners) {
+    if (c < 0 || c >= n)
+      throw InputError(kSource, "corner vertex " + std::to_string(c) + " out of range");
+    L.vcorner[c] = 1;
+  }
+  return L;
+}
+
+// Per-level incidence the rules need.
+struct Adjacency {
+  std::vector<std::array<int, 2>> efaces;  // -1 when absent
+  Csr vedges, vfaces;
+};
+
+Adjacency adjacency(const Level& L) {
+  Adjacency a;
+  a.efaces.assign(L.ne(), {-1, -1});
+  for (int f = 0; f < L.nf(); ++f)
+    for (int k = L.foff[f]; k < L.foff[f + 1]; ++k) {
+      auto& ef = a.efaces[L.fedges[k]];
+      (ef[0] < 0 ? ef[0] : ef[1]) = f;
+    }
+  a.vedges = build_csr(L.nv, [&](auto emit) {
+    for (int e = 0; e < L.ne(); ++e) {
+      emit(L.everts[e][0], e);
+      emit(L.everts[e][1], e);
+    }
+  });
+  a.vfaces = build_csr(L.nv, [&](auto emit) {
+    for (int f = 0; f < L.nf(); ++f)
+      for (int k = L.foff[f]; k < L.foff[f + 1]; ++k) emit(L.fverts[k], f);
+  });
+  return a;
+}
+
+// Vertices whose faces form more than one fan (touching cones, bow-ties): kept fixed.
+void mark_nonmanifold_vertices(Level& L, const Adjacency& a) {
+  std::vector<int> parent;
+  for (int v = 0; v < L.nv; ++v) {
+    const int nfaces = a.vfaces.size(v);
+    if (nfaces <= 1) continue;
+    const int* fb = a.vfaces.begin(v);
+    parent.resize(nfaces);
+    for (int i = 0; i < nfaces; ++i) parent[i] = i;
+    auto local = [&](int f) { return static_cast<int>(std::find(fb, fb + nfaces, f) - fb); };
+    auto find = [&](int i) {
+      while (parent[i] != i) i = parent[i] = parent[parent[i]];
+      return i;
+    };
+    int components = nfaces;
+    for (const int* e = a.vedges.begin(v); e != a.vedges.end(v); ++e) {
+      const auto& ef = a.efaces[*e];
+      if (ef[1] < 0) continue;
+      const int r0 = find(local(ef[0])), r1 = find(local(ef[1]));
+      if (r0 != r1) {
+        parent[r0] = r1;
+        --components;
+      }
+    }
+    if (components > 1) L.vcorner[v] = 1;
+  }
+}
+
+// Sparse row accumulator: weights of one refined vertex on the coarse vertices.
+class RowBuilder {
+ public:
+  explicit RowBuilder(int ncols) : slot_(ncols, -1) {}
+  void add(int col, double w) {
+    int& s = slot_[col];
+    if (s < 0) {
+      s = static_cast<int>(cols_.size());
+      cols_.push_back(col);
+      vals_.push_back(w);
+    } else {
+      vals_[s] += w;
+    }
+  }
+  // Appends the row (sorted columns, zero weights dropped) to the CSR arrays and resets.
+  void flush(std::vector<int>& inner, std::vector<double>& values, std::vector<int>& outer) {
+    order_.resize(cols_.size());
+    for (size_t i = 0; i < cols_.size(); ++i) order_[i] = static_cast<int>(i);
+    std::sort(order_.begin(), order_.end(), [&](int x, int y) { return cols_[x] < cols_[y]; });
+    for (int i : order_) {
+      if (vals_[i] != 0.0) {
+        inner.push_back(cols_[i]);
+        values.push_back(vals_[i]);
+      }
+      slot_[cols_[i]] = -1;
+    }
+    cols_.clear();
+    vals_.clear();
+    outer.push_back(static_cast<int>(inner.size()));
+  }
+
+ private:
+  std::vector<int> slot_, cols_, order_;
+  std::vector<double> vals_;
+};
+
+// Loop's smooth vertex weights as OpenSubdiv computes them (exact values for valences 3 and 6).
+void loop_weights(int n, double& vertex_w, double& edge_w) {
+  if (n == 6) {
+    edge_w = 0.0625;
+    vertex_w = 0.625;
+  } else if (n == 3) {
+    edge_w = 0.1875;
+    vertex_w = 0.4375;
+  } else {
+    const double inv = 1.0 / n;
+    const double beta = 0.25 * std::cos(2.0 * kPi * inv) + 0.375;
+    edge_w = (0.625 - beta * beta) * inv;
+    vertex_w = 1.0 - edge_w * n;
+  }
+}
+
+struct StepResult {
+  SparseOperator M;
+  Level child;
+};
+
+// One subdivision step: the weights of every child vertex, and the child topology.
+StepResult refine(const Level& L) {
+  const Adjacency a = adjacency(L);
+  const int nv = L.nv, nf = L.nf(), ne = L.ne();
+
+  // Face points only for non-triangles, in face order.
+  std::vector<int> fpoint(nf, -1);
+  int nfp = 0;
+  for (int f = 0; f < nf; ++f)
+    if (L.fsize(f) != 3) fpoint[f] = nv + nfp++;
+  const int nchild = nv + nfp + ne;
+  auto epoint = [&](int e) { return nv + nfp + e; };
+  auto sharp = [&](int e) { return L.ecrease[e] || a.efaces[e][1] < 0; };
+
+  std::vector<int> outer{0}, inner;
+  std::vector<double> values;
+  outer.reserve(nchild + 1);
+  inner.reserve(static_cast<size_t>(nchild) * 8);
+  values.reserve(static_cast<size_t>(nchild) * 8);
+  RowBuilder row(nv);
+
+  auto add_face_point = [&](int f, double w) {  // w * centroid of face f
+    const double wi = w / L.fsize(f);
+    for (int k = L.foff[f]; k < L.foff[f + 1]; ++k) row.add(L.fverts[k], wi);
+  };
+  auto other_end = [&](int e, int v) { return L.everts[e][0] == v ? L.everts[e][1] : L.everts[e][0]; };
+
+  // Vertex points.
+  for (int v = 0; v < nv; ++v) {
+    const int nedges = a.vedges.size(v);
+    int nsharp = 0, s0 = -1, s1 = -1;
+    for (const int* e = a.vedges.begin(v); e != a.vedges.end(v); ++e)
+      if (sharp(*e)) {
+        (nsharp == 0 ? s0 : s1) = *e;
+        ++nsharp;
+      }
+    if (L.vcorner[v] || nsharp > 2 || a.vfaces.size(v) == 0) {
+      row.add(v, 1.0);  // corner
+    } else if (nsharp == 2) {
+      row.add(v, 0.75);  // crease
+      row.add(other_end(s0, v), 0.125);
+      row.add(other_end(s1, v), 0.125);
+    } else {
+      int ntri = 0, nquad = 0;
+      for (const int* f = a.vfaces.begin(v); f != a.vfaces.end(v); ++f)
+        (L.fsize(*f) == 3 ? ntri : nquad)++;
+      if (nquad == 0) {  // Loop
+        double vw, ew;
+        loop_weights(nedges, vw, ew);
+        row.add(v, vw);
+        for (const int* e = a.vedges.begin(v); e != a.vedges.end(v); ++e) row.add(other_end(*e, v), ew);
+      } else if (ntri == 0) {  // Catmull-Clark
+        const double n = nedges, w = 1.0 / (n * n);
+        row.add(v, (n - 2.0) / n);
+        for (const int* e = a.vedges.begin(v); e != a.vedges.end(v); ++e) row.add(other_end(*e, v), w);
+        for (const int* f = a.vfaces.begin(v); f != a.vfaces.end(v); ++f) add_face_point(*f, w);
+      } else {  // Stam-Loop averaging of the split mesh: 1 (vertex), 1/2 (edge midpoints),
+                // 1/4 (quad centres), normalised.
+        const double alpha = 1.0 / (1.0 + nedges / 2.0 + nquad / 4.0);
+        row.add(v, alpha * (1.0 + nedges / 4.0));
+        for (const int* e = a.vedges.begin(v); e != a.vedges.end(v); ++e)
+          row.add(other_end(*e, v), alpha / 4.0);
+        for (const int* f = a.vfaces.begin(v); f != a.vfaces.end(v); ++f)
+          if (L.fsize(*f) != 3) add_face_point(*f, alpha / 4.0);
+      }
+    }
+    row.flush(inner, values, outer);
+  }
+  // Face points.
+  for (int f = 0; f < nf; ++f)
+    if (fpoint[f] >= 0) {
+      add_face_point(f, 1.0);
+      row.flush(inner, values, outer);
+    }
+  // Edge points: 1/4 per endpoint plus each face's wing (triangle: 1/16 per endpoint and 1/8
+  // opposite, i.e. Loop; other faces: 1/4 of the face point, i.e. Catmull-Clark).
+  for (int e = 0; e < ne; ++e) {
+    const int v0 = L.everts[e][0], v1 = L.everts[e][1];
+    if (sharp(e)) {
+      row.add(v0, 0.5);
+      row.add(v1, 0.5);
+    } else {
+      row.add(v0, 0.25);
+      row.add(v1, 0.25);
+      for (int f : a.efaces[e]) {
+        if (L.fsize(f) == 3) {
+          row.add(v0, 0.0625);
+          row.add(v1, 0.0625);
+          for (int k = L.foff[f]; k < L.foff[f + 1]; ++k)
+            if (L.fverts[k] != v0 && L.fverts[k] != v1) row.add(L.fverts[k], 0.125);
+        } else {
+          add_face_point(f, 0.25);
+        }
+      }
+    }
+    row.flush(inner, values, outer);
+  }
+
+  StepResult r;
+  r.M = Eigen::Map<const SparseOperator>(nchild, nv, static_cast<Eigen::Index>(inner.size()),
+                                         outer.data(), inner.data(), values.data());
+
+  // Child topology, numbered as OpenSubdiv: faces by parent face; edges interior to faces first
+  // (by face), then the two halves of each parent edge.
+  Level& C = r.child;
+  C.nv = nchild;
+  int nint = 0;
+  int nchild_faces = 0;
+  for (int f = 0; f < nf; ++f) {
+    nint += L.fsize(f);  // a triangle has 3 interior edges, an n-gon n
+    nchild_faces += L.fsize(f) == 3 ? 4 : L.fsize(f);
+  }
+  C.everts.resize(nint + 2 * static_cast<size_t>(ne));
+  C.ecrease.assign(C.everts.size(), 0);
+  C.foff.resize(nchild_faces + 1);
+  C.fverts.resize(4 * static_cast<size_t>(nchild_faces) - [&] {
+    int tris = 0;
+    for (int f = 0; f < nf; ++f) tris += L.fsize(f) == 3;
+    return 4 * tris;  // triangle children have 3 corners, not 4
+  }());
+  C.fedges.resize(C.fverts.size());
+  for (int e = 0; e < ne; ++e) {
+    C.everts[nint + 2 * e] = {epoint(e), L.everts[e][0]};
+    C.everts[nint + 2 * e + 1] = {epoint(e), L.everts[e][1]};
+    C.ecrease[nint + 2 * e] = C.ecrease[nint + 2 * e + 1] = L.ecrease[e];
+  }
+  auto half = [&](int e, int v) { return nint + 2 * e + (L.everts[e][0] == v ? 0 : 1); };
+  int ie = 0, cf = 0, cpos = 0;
+  auto push_face = [&](std::initializer_list<int> vs, std::initializer_list<int> es) {
+    auto ev = es.begin();
+    for (int v : vs) {
+      C.fverts[cpos] = v;
+      C.fedges[cpos++] = *ev++;
+    }
+    C.foff[++cf] = cpos;
+  };
+  C.foff[0] = 0;
+  for (int f = 0; f < nf; ++f) {
+    const int b = L.foff[f], s = L.fsize(f);
+    const int* fv = &L.fverts[b];
+    const int* fe = &L.fedges[b];
+    if (s == 3) {
+      const int e0 = fe[0], e1 = fe[1], e2 = fe[2];
+      const int p0 = epoint(e0), p1 = epoint(e1), p2 = epoint(e2);
+      const int i0 = ie, i1 = ie + 1, i2 = ie + 2;
+      C.everts[i0] = {p0, p2};
+      C.everts[i1] = {p1, p0};
+      C.everts[i2] = {p2, p1};
+      ie += 3;
+      push_face({fv[0], p0, p2}, {half(e0, fv[0]), i0, half(e2, fv[0])});
+      push_face({p0, fv[1], p1}, {half(e0, fv[1]), half(e1, fv[1]), i1});
+      push_face({p2, p1, fv[2]}, {i2, half(e1, fv[2]), half(e2, fv[2])});
+      push_face({p1, p2, p0}, {i2, i0, i1});
+    } else {
+      const int fp = fpoint[f], i_first = ie;
+      for (int j = 0; j < s; ++j) C.everts[ie++] = {fp, epoint(fe[j])};
+      for (int j = 0; j < s; ++j) {
+        const int jp = (j + s - 1) % s;
+        const int v = fv[j], en = fe[j], ep = fe[jp];
+        std::array<int, 4> vs{v, epoint(en), fp, epoint(ep)};
+        std::array<int, 4> es{half(en, v), i_first + j, i_first + jp, half(ep, v)};
+        // Quads keep the corner vertex at the parent's corner position; other polygons start there.
+        const int rot = s == 4 ? j : 0;
+        std::array<int, 4> rv, re;
+        for (int k = 0; k < 4; ++k) {
+          rv[(k + rot) % 4] = vs[k];
+          re[(k + rot) % 4] = es[k];
+        }
+        push_face({rv[0], rv[1], rv[2], rv[3]}, {re[0], re[1], re[2], re[3]});
+      }
+    }
+  }
+  C.vcorner.assign(nchild, 0);
+  std::copy(L.vcorner.begin(), L.vcorner.end(), C.vcorner.begin());
+  return r;
+}
+
+Mesh to_mesh(const Level& L, const std::vector<int>& tagged_corners) {
+  Mesh m;
+  m.faces.resize(L.nf());
+  for (int f = 0; f < L.nf(); ++f) m.faces[f].assign(L.fverts.begin() + L.foff[f], L.fverts.begin() + L.foff[f + 1]);
+  for (int e = 0; e < L.ne(); ++e)
+    if (L.ecrease[e]) m.creases.emplace_back(std::min(L.everts[e][0], L.everts[e][1]),
+                                             std::max(L.everts[e][0], L.everts[e][1]));
+  m.corners = tagged_corners;
+  return m;
+}
+
+}  // namespace
+
+SubdivisionOperator build_subdivision(const Mesh& control, int levels) {
+  if (levels < 0 || levels > kMaxSubdivisionLevels)
+    throw std::invalid_argument("subdivision levels must be in [0, " +
+                                std::to_string(kMaxSubdivisionLevels) + "], got " +
+                                std::to_string(levels));
+  Level L = make_base_level(control);
+  {
+    // Vertex count after `levels` steps: V + F' + E per step (F' = non-triangles); bound it
+    // before allocating anything (all faces become quads or triangles after one step).
+    long long v = L.nv, e = L.ne(), q = 0, t = 0, c = 0;
+    for (int f = 0; f < L.nf(); ++f) (L.fsize(f) == 3 ? t : q)++, c += L.fsize(f);
+    for (int k = 0; k < levels; ++k) {
+      const long long corners_nontri = c - 3 * t;
+      const long long nv = v + q + e;
+      const long long ne2 = 2 * e + 3 * t + corners_nontri;
+      const long long nt = 4 * t, nq = corners_nontri;
+      v = nv, e = ne2, t = nt, q = nq, c = 3 * nt + 4 * nq;
+      if (v > kMaxRefinedVertices)
+        throw std::invalid_argument("subdivision to level " + std::to_string(levels) + " would make " +
+                                    "more than " + std::to_string(kMaxRefinedVertices) + " vertices");
+    }
+  }
+  {
+    Adjacency a = adjacency(L);
+    mark_nonmanifold_vertices(L, a);
+  }
+  std::vector<int> corners = control.corners;
+  std::sort(corners.begin(), corners.end());
+  corners.erase(std::unique(corners.begin(), corners.end()), corners.end());
+
+  SubdivisionOperator op;
+  const int n = control.num_vertices();
+  SparseOperator S(n, n);
+  S.setIdentity();
+  for (int k = 0; k < levels; ++k) {
+    StepResult r = refine(L);
+    S = SparseOperator(r.M * S);
+    op.steps.push_back(std::move(r.M));
+    L = std::move(r.child);
+  }
+  op.S = std::move(S);
+  op.refined = to_mesh(L, corners);
+  op.refined.points = op.S * control.points;
+  return op;
+}
+
+Points apply_subdivision(const SubdivisionOperator& op, const Points& control_points) {
+  if (control_points.rows() != op.S.cols())
+    throw std::invalid_argument("apply_subdivision: " + std::to_string(control_points.rows()) +
+                                " control points for an operator on " + std::to_string(op.S.cols()));
+  Points p = control_points;
+  for (const auto& M : op.steps) p = M * p;
+  return p;
+}
+
+Mesh subdivide(const Mesh& control, int levels) { return build_subdivision(control, levels).refined; }
+
+}  // namespace mm
