@@ -1,0 +1,243 @@
+#include "service/config.h"
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+
+namespace mm::service {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+class Checker {
+ public:
+  Checker(std::string source, std::string base) : source_(std::move(source)), base_(std::move(base)) {}
+  void error(const std::string& key, const std::string& why) { errors_.push_back(key + ": " + why); }
+  bool ok() const { return errors_.empty(); }
+  std::string report() const {
+    std::string s = source_ + ": invalid configuration";
+    for (const auto& e : errors_) s += "\n  " + e;
+    return s;
+  }
+
+  void known(const json& obj, const std::string& prefix, const std::set<std::string>& keys) {
+    for (auto it = obj.begin(); it != obj.end(); ++it)
+      if (!keys.count(it.key()))
+        error(prefix + it.key(), "unknown key (see config/config-keys.md)");
+  }
+  void integer(const json& obj, const std::string& prefix, const char* key, int& out, long lo, long hi) {
+    if (!obj.contains(key)) return;
+    const json& v = obj[key];
+    if (!v.is_number_integer()) return error(prefix + key, "must be an integer, got " + std::string(v.type_name()));
+    auto x = v.get<long long>();
+    if (x < lo || x > hi)
+      return error(prefix + key, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + std::to_string(x));
+    out = static_cast<int>(x);
+  }
+  void number(const json& obj, const std::string& prefix, const char* key, double& out, double lo, double hi,
+              bool open_lo) {
+    if (!obj.contains(key)) return;
+    const json& v = obj[key];
+    if (!v.is_number()) return error(prefix + key, "must be a number, got " + std::string(v.type_name()));
+    double x = v.get<double>();
+    if (!(open_lo ? x > lo : x >= lo) || !(x <= hi)) {
+      std::ostringstream s;
+      s << "must be in " << (open_lo ? "(" : "[") << lo << ", " << hi << "], got " << x;
+      return error(prefix + key, s.str());
+    }
+    out = x;
+  }
+  void boolean(const json& obj, const std::string& prefix, const char* key, bool& out) {
+    if (!obj.contains(key)) return;
+    if (!obj[key].is_boolean()) return error(prefix + key, "must be true or false");
+    out = obj[key].get<bool>();
+  }
+  void string(const json& obj, const std::string& prefix, const char* key, std::string& out,
+              const std::set<std::string>& allowed = {}) {
+    if (!obj.contains(key)) return;
+    if (!obj[key].is_string()) return error(prefix + key, "must be a string, got " + std::string(obj[key].type_name()));
+    std::string s = obj[key].get<std::string>();
+    if (!allowed.empty() && !allowed.count(s)) {
+      std::string list;
+      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      return error(prefix + key, "must be one of " + list + ", got \"" + s + "\"");
+    }
+    out = s;
+  }
+  void path(const json& obj, const char* key, std::string& out, bool required) {
+    if (!obj.contains(key)) {
+      if (required) error(key, "missing (required)");
+      return;
+    }
+    std::string s;
+    string(obj, "", key, s);
+    if (!obj[key].is_string()) return;
+    if (s.empty()) return error(key, "must not be empty");
+    fs::path p(s);
+    if (p.is_relative() && !base_.empty()) p = fs::path(base_) / p;
+    out = p.lexically_normal().string();
+  }
+  void folder_exists(const std::string& key, const std::string& p) {
+    if (p.empty()) return;
+    std::error_code ec;
+    if (!fs::is_directory(p, ec)) error(key, "folder " + p + " does not exist");
+  }
+
+ private:
+  std::string source_, base_;
+  std::vector<std::string> errors_;
+};
+
+}  // namespace
+
+std::string Config::master_key_path() const {
+  return master_key_file.empty() ? (fs::path(home) / "master.key").string() : master_key_file;
+}
+
+Config parse_config(const std::string& text, const std::string& source, const std::string& base_dir,
+                    bool check_folders) {
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const json::parse_error& e) {
+    throw ConfigError(source + ": not valid JSON: " + e.what());
+  }
+  if (!j.is_object()) throw ConfigError(source + ": the configuration must be a JSON object");
+  Checker c(source, base_dir);
+  Config cfg;
+  cfg.source = source;
+  c.known(j, "", {"home", "drop_dir", "output_dir", "master_key_file", "workers", "lease_seconds",
+                  "heartbeat_seconds", "max_attempts", "shutdown_grace_seconds", "poll_interval_ms",
+                  "settle_ms", "use_inotify", "output_format", "watermark", "detect", "log_level",
+                  "log_file", "$comment"});
+  c.path(j, "home", cfg.home, true);
+  c.path(j, "drop_dir", cfg.drop_dir, true);
+  c.path(j, "output_dir", cfg.output_dir, true);
+  c.path(j, "master_key_file", cfg.master_key_file, false);
+  c.integer(j, "", "workers", cfg.workers, 1, 64);
+  c.integer(j, "", "lease_seconds", cfg.lease_seconds, 5, 86400);
+  c.integer(j, "", "heartbeat_seconds", cfg.heartbeat_seconds, 1, 3600);
+  c.integer(j, "", "max_attempts", cfg.max_attempts, 1, 100);
+  c.integer(j, "", "shutdown_grace_seconds", cfg.shutdown_grace_seconds, 0, 3600);
+  c.integer(j, "", "poll_interval_ms", cfg.poll_interval_ms, 20, 600000);
+  c.integer(j, "", "settle_ms", cfg.settle_ms, 0, 600000);
+  c.boolean(j, "", "use_inotify", cfg.use_inotify);
+  c.string(j, "", "output_format", cfg.output_format, {"same", "stl", "obj", "off", "ply"});
+  c.string(j, "", "log_level", cfg.log_level, {"trace", "debug", "info", "warn", "error", "critical", "off"});
+  if (j.contains("log_file")) {
+    std::string lf;
+    c.string(j, "", "log_file", lf);
+    if (!lf.empty()) {
+      fs::path p(lf);
+      if (p.is_relative() && !base_dir.empty()) p = fs::path(base_dir) / p;
+      cfg.log_file = p.lexically_normal().string();
+    }
+  }
+  if (j.contains("watermark")) {
+    const json& w = j["watermark"];
+    if (!w.is_object()) {
+      c.error("watermark", "must be an object");
+    } else {
+      c.known(w, "watermark.", {"method", "strength", "threshold", "message_bits", "max_vertices"});
+      std::string method = "additive";
+      c.string(w, "watermark.", "method", method, {"additive", "multiplicative"});
+      cfg.watermark.params.method = method == "additive" ? Method::Additive : Method::Multiplicative;
+      c.number(w, "watermark.", "strength", cfg.watermark.params.strength, 0, 1, true);
+      c.number(w, "watermark.", "threshold", cfg.watermark.params.threshold, 0, 1e9, false);
+      c.integer(w, "watermark.", "message_bits", cfg.watermark.message_bits, 8, 64);
+      c.integer(w, "watermark.", "max_vertices", cfg.max_vertices, 4, 20000);
+    }
+  }
+  if (j.contains("detect")) {
+    const json& d = j["detect"];
+    if (!d.is_object()) {
+      c.error("detect", "must be an object");
+    } else {
+      c.known(d, "detect.", {"p_threshold", "max_candidates"});
+      c.number(d, "detect.", "p_threshold", cfg.p_threshold, 0, 0.01, true);
+      c.integer(d, "detect.", "max_candidates", cfg.max_candidates, 1, 100);
+    }
+  }
+  if (cfg.heartbeat_seconds * 2 > cfg.lease_seconds)
+    c.error("heartbeat_seconds", "must be at most half of lease_seconds (" + std::to_string(cfg.lease_seconds) +
+                                     "), so one missed beat does not lose the lease");
+  if (check_folders) {
+    c.folder_exists("home", cfg.home);
+    c.folder_exists("drop_dir", cfg.drop_dir);
+    c.folder_exists("output_dir", cfg.output_dir);
+    if (!cfg.log_file.empty()) c.folder_exists("log_file", fs::path(cfg.log_file).parent_path().string());
+  }
+  if (!cfg.drop_dir.empty() && cfg.drop_dir == cfg.output_dir)
+    c.error("output_dir", "must differ from drop_dir (outputs would be picked up as new drops)");
+  if (!cfg.drop_dir.empty() && !cfg.output_dir.empty()) {
+    auto rel = fs::path(cfg.output_dir).lexically_relative(cfg.drop_dir);
+    if (!rel.empty() && *rel.begin() != ".." && rel != ".")
+      c.error("output_dir", "must not lie inside drop_dir");
+  }
+  if (!c.ok()) throw ConfigError(c.report());
+  return cfg;
+}
+
+Config load_config(const std::string& path, bool check_folders) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError(path + ": cannot open configuration file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  auto base = fs::absolute(fs::path(path)).parent_path().string();
+  return parse_config(ss.str(), path, base, check_folders);
+}
+
+namespace {
+std::map<std::string, std::string> flatten(const Config& c) {
+  std::ostringstream d;
+  auto num = [](double x) {
+    std::ostringstream s;
+    s << x;
+    return s.str();
+  };
+  return {{"home", c.home},
+          {"drop_dir", c.drop_dir},
+          {"output_dir", c.output_dir},
+          {"master_key_file", c.master_key_file},
+          {"workers", std::to_string(c.workers)},
+          {"lease_seconds", std::to_string(c.lease_seconds)},
+          {"heartbeat_seconds", std::to_string(c.heartbeat_seconds)},
+          {"max_attempts", std::to_string(c.max_attempts)},
+          {"shutdown_grace_seconds", std::to_string(c.shutdown_grace_seconds)},
+          {"poll_interval_ms", std::to_string(c.poll_interval_ms)},
+          {"settle_ms", std::to_string(c.settle_ms)},
+          {"use_inotify", c.use_inotify ? "true" : "false"},
+          {"output_format", c.output_format},
+          {"watermark.method", c.watermark.params.method == Method::Additive ? "additive" : "multiplicative"},
+          {"watermark.strength", num(c.watermark.params.strength)},
+          {"watermark.threshold", num(c.watermark.params.threshold)},
+          {"watermark.message_bits", std::to_string(c.watermark.message_bits)},
+          {"watermark.max_vertices", std::to_string(c.max_vertices)},
+          {"detect.p_threshold", num(c.p_threshold)},
+          {"detect.max_candidates", std::to_string(c.max_candidates)},
+          {"log_level", c.log_level},
+          {"log_file", c.log_file}};
+}
+}  // namespace
+
+std::vector<std::string> config_changes(const Config& before, const Config& after) {
+  auto a = flatten(before), b = flatten(after);
+  std::vector<std::string> out;
+  for (const auto& [k, v] : a)
+    if (b[k] != v) out.push_back(k + ": " + v + " -> " + b[k]);
+  return out;
+}
+
+bool needs_restart(const std::string& line) {
+  for (const char* k : {"home:", "drop_dir:", "output_dir:", "master_key_file:", "workers:", "use_inotify:",
+                        "log_file:"})
+    if (line.rfind(k, 0) == 0) return true;
+  return false;
+}
+
+}  // namespace mm::service

@@ -1,0 +1,58 @@
+// meshmarkd's configuration: one JSON file, every key documented in config/config-keys.md.
+// load_config() validates everything up front (unknown keys, wrong types, out-of-range values,
+// missing folders) and reports all problems at once, each naming the key.
+#pragma once
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "jobs/protect.h"
+
+namespace mm::service {
+
+struct ConfigError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct Config {
+  std::string source;  // the file it came from ("" for defaults)
+  // Paths (relative ones are resolved against the config file's folder).
+  std::string home;             // meshmark home: meshmark.db, blobs/, master.key
+  std::string drop_dir;         // <drop>/protect/<customer>/, <drop>/detect/, done/, failed/
+  std::string output_dir;       // protected copies: <output>/<customer>/<name>
+  std::string master_key_file;  // "" = <home>/master.key
+  // Workers and queue.
+  int workers = 2;
+  int lease_seconds = 300;
+  int heartbeat_seconds = 30;
+  int max_attempts = 5;
+  int shutdown_grace_seconds = 30;
+  // Drop folders.
+  int poll_interval_ms = 1000;
+  int settle_ms = 2000;  // polling fallback: a file unchanged this long counts as complete
+  bool use_inotify = true;
+  // Protect and detect.
+  std::string output_format = "same";  // same | stl | obj | off | ply
+  jobs::WatermarkSettings watermark;
+  int max_vertices = 4000;
+  double p_threshold = 1e-6;
+  int max_candidates = 3;
+  // Logging.
+  std::string log_level = "info";  // trace debug info warn error critical off
+  std::string log_file;            // "" = stderr (journald under systemd)
+
+  std::string master_key_path() const;
+};
+
+// Parses and validates; throws ConfigError listing every problem ("<file>: key: reason").
+// check_folders: the folders must exist (the daemon); false for tools that only read settings.
+Config load_config(const std::string& path, bool check_folders = true);
+Config parse_config(const std::string& json_text, const std::string& source,
+                    const std::string& base_dir, bool check_folders);
+
+// Human-readable "key: old -> new" lines for a reload log.
+std::vector<std::string> config_changes(const Config& before, const Config& after);
+// Keys that only take effect after a restart (listed in changes but not applied live).
+bool needs_restart(const std::string& change_line);
+
+}  // namespace mm::service

@@ -1,0 +1,285 @@
+#include "service/daemon.h"
+
+#include <poll.h>
+#include <signal.h>
+#include <sys/signalfd.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <spdlog/sinks/basic_file_sink.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include "service/handlers.h"
+#include "store/home.h"
+
+namespace mm::service {
+
+using nlohmann::json;
+
+namespace {
+
+std::int64_t now_ms() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+std::string host_prefix() {
+  char host[256] = {0};
+  ::gethostname(host, sizeof host - 1);
+  return std::string(host) + ":" + std::to_string(::getpid());
+}
+
+}  // namespace
+
+void setup_logging(const Config& cfg) {
+  std::shared_ptr<spdlog::logger> logger;
+  if (cfg.log_file.empty())
+    logger = spdlog::stderr_color_mt("meshmarkd-" + std::to_string(now_ms()));
+  else
+    logger = spdlog::basic_logger_mt("meshmarkd-" + std::to_string(now_ms()), cfg.log_file);
+  logger->set_pattern("%Y-%m-%d %H:%M:%S.%e [%l] %v");
+  logger->set_level(spdlog::level::from_str(cfg.log_level));
+  logger->flush_on(spdlog::level::info);
+  spdlog::set_default_logger(logger);
+}
+
+std::unique_ptr<store::Store> open_store(const Config& cfg) {
+  auto home = store::resolve_home(cfg.home);
+  home.master_key = cfg.master_key_path();
+  return store::open_home(home, true);
+}
+
+Daemon::Daemon(Config cfg) : cfg_(std::make_shared<const Config>(std::move(cfg))) {
+  store_ = open_store(*cfg_);
+}
+
+Daemon::~Daemon() = default;
+
+std::shared_ptr<const Config> Daemon::config() const {
+  std::lock_guard<std::mutex> l(cfg_m_);
+  return cfg_;
+}
+
+void Daemon::reload() {
+  auto old = config();
+  Config fresh;
+  try {
+    fresh = load_config(old->source);
+  } catch (const std::exception& e) {
+    spdlog::error("SIGHUP: configuration not reloaded, keeping the running one: {}", e.what());
+    return;
+  }
+  auto changes = config_changes(*old, fresh);
+  if (changes.empty()) {
+    spdlog::info("SIGHUP: configuration reloaded, nothing changed");
+    return;
+  }
+  // Keys that need a restart keep their running values.
+  fresh.home = old->home;
+  fresh.drop_dir = old->drop_dir;
+  fresh.output_dir = old->output_dir;
+  fresh.master_key_file = old->master_key_file;
+  fresh.workers = old->workers;
+  fresh.use_inotify = old->use_inotify;
+  fresh.log_file = old->log_file;
+  for (const auto& c : changes)
+    spdlog::info("SIGHUP: {}{}", c, needs_restart(c) ? " (takes effect after a restart)" : "");
+  spdlog::set_level(spdlog::level::from_str(fresh.log_level));
+  if (watcher_) watcher_->set_settle_ms(fresh.settle_ms);
+  std::lock_guard<std::mutex> l(cfg_m_);
+  cfg_ = std::make_shared<const Config>(std::move(fresh));
+}
+
+void Daemon::handle_drop(const DropItem& item) {
+  auto cfg = config();
+  auto fail_now = [&](const std::string& reason) {
+    try {
+      auto dest = DropWatcher::finish(cfg->drop_dir, item, false,
+                                      json{{"file", item.relative}, {"state", "rejected"}, {"reason", reason}}.dump(2));
+      spdlog::warn("drop {} rejected: {} -> {}", item.relative, reason, dest);
+    } catch (const std::exception& e) {
+      spdlog::error("drop {}: cannot move to failed/: {}", item.relative, e.what());
+    }
+    watcher_->forget(item.path);
+  };
+  try {
+    store::EnqueueResult r;
+    if (item.kind == DropKind::protect) {
+      if (!store_->find_customer(item.customer))
+        return fail_now("unknown customer \"" + item.customer + "\" (add it with: meshmark customer add " +
+                        item.customer + ")");
+      r = submit_protect(*store_, item.customer, item.path, item.name, cfg->max_attempts, "drop");
+    } else {
+      r = submit_detect(*store_, item.path, item.name, cfg->max_attempts, "drop");
+    }
+    ++submitted_;
+    spdlog::info("drop {} -> job {} {}{}", item.relative, r.job.id, r.job.kind, r.created ? "" : " (already submitted)");
+    inflight_[r.job.id] = item;
+    if (pool_) pool_->notify();
+  } catch (const store::BlobError& e) {
+    spdlog::warn("drop {}: cannot read: {}", item.relative, e.what());
+    watcher_->forget(item.path);
+  } catch (const std::exception& e) {
+    spdlog::error("drop {}: cannot submit: {}", item.relative, e.what());
+    watcher_->forget(item.path);
+  }
+}
+
+void Daemon::finalize(const DropItem& item, const store::Job& job) {
+  auto cfg = config();
+  bool ok = job.state == store::JobState::completed;
+  json reason{{"file", item.relative}, {"job_id", job.id}, {"kind", job.kind}, {"state", store::to_string(job.state)},
+              {"attempts", job.attempt}};
+  if (ok) {
+    try {
+      reason["result"] = json::parse(job.result_json.empty() ? "{}" : job.result_json);
+    } catch (const json::exception&) {
+    }
+  } else {
+    reason["reason"] = job.errors.empty() ? std::string(job.state == store::JobState::cancelled ? "cancelled" : "failed")
+                                          : job.errors.back().error;
+  }
+  try {
+    auto dest = DropWatcher::finish(cfg->drop_dir, item, ok, reason.dump(2));
+    spdlog::info("drop {} ({} job {}) -> {}", item.relative, store::to_string(job.state), job.id, dest);
+  } catch (const std::exception& e) {
+    spdlog::error("drop {}: cannot move: {}", item.relative, e.what());
+  }
+  if (watcher_) watcher_->forget(item.path);
+}
+
+void Daemon::check_inflight() {
+  for (auto it = inflight_.begin(); it != inflight_.end();) {
+    std::optional<store::Job> job;
+    try {
+      job = store_->get_job(it->first);
+    } catch (const std::exception& e) {
+      spdlog::warn("job {}: cannot read state: {}", it->first, e.what());
+      ++it;
+      continue;
+    }
+    if (!job) {
+      ++it;
+      continue;
+    }
+    auto s = job->state;
+    if (s == store::JobState::completed || s == store::JobState::discarded || s == store::JobState::cancelled) {
+      finalize(it->second, *job);
+      it = inflight_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+int Daemon::run() {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGHUP);
+  // Blocked before any thread starts, so every thread inherits the mask and only the signalfd
+  // sees these signals.
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+  int sfd = ::signalfd(-1, &set, SFD_NONBLOCK | SFD_CLOEXEC);
+  if (sfd < 0) {
+    spdlog::critical("signalfd failed");
+    return 1;
+  }
+  auto cfg = config();
+  watcher_ = std::make_unique<DropWatcher>(cfg->drop_dir, cfg->use_inotify, cfg->settle_ms);
+  auto cfg_fn = [this] { return config(); };
+  auto factory = [this] { return open_store(*config()); };
+  pool_ = std::make_unique<WorkerPool>(cfg->workers, factory, default_handlers(), cfg_fn, host_prefix());
+  int reaped = store_->reap_expired_leases();
+  spdlog::info("meshmarkd started: {} workers, drop {}, output {}, inotify {}, schema v{}{}", cfg->workers,
+               cfg->drop_dir, cfg->output_dir, watcher_->inotify_active() ? "on" : "off", store_->schema_version(),
+               reaped ? ", " + std::to_string(reaped) + " expired leases reaped" : "");
+  pool_->start();
+
+  bool stopping = false;
+  while (!stopping) {
+    cfg = config();
+    struct pollfd fds[2] = {{sfd, POLLIN, 0}, {watcher_->fd(), POLLIN, 0}};
+    int nfds = watcher_->fd() >= 0 ? 2 : 1;
+    ::poll(fds, static_cast<nfds_t>(nfds), cfg->poll_interval_ms);
+    struct signalfd_siginfo si;
+    while (::read(sfd, &si, sizeof si) == static_cast<ssize_t>(sizeof si)) {
+      if (si.ssi_signo == SIGHUP) {
+        spdlog::info("SIGHUP: reloading {}", cfg->source);
+        reload();
+      } else {
+        spdlog::info("{}: draining (no new claims; running jobs get {} s)", si.ssi_signo == SIGTERM ? "SIGTERM" : "SIGINT",
+                     cfg->shutdown_grace_seconds);
+        stopping = true;
+      }
+    }
+    if (stopping) break;
+    for (const auto& item : watcher_->poll(now_ms())) handle_drop(item);
+    check_inflight();
+  }
+
+  cfg = config();
+  pool_->stop_claiming();
+  auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(cfg->shutdown_grace_seconds);
+  bool drained = pool_->wait_idle(deadline);
+  check_inflight();
+  auto st = pool_->stats();
+  if (!drained) {
+    int released = pool_->release_running();
+    spdlog::warn("shutdown deadline passed: {} running job(s) released to the queue; exiting", released);
+    spdlog::default_logger()->flush();
+    ::close(sfd);
+    // Worker threads are still inside handlers; their results would be refused (lease released).
+    std::_Exit(0);
+  }
+  pool_->join();
+  spdlog::info("meshmarkd stopped: {} completed, {} discarded, {} failed (will retry) in this run", st.completed,
+               st.discarded, st.failed);
+  spdlog::default_logger()->flush();
+  ::close(sfd);
+  return 0;
+}
+
+BatchSummary Daemon::run_until_empty(bool scan_drops, bool progress) {
+  BatchSummary s;
+  auto cfg = config();
+  if (scan_drops) {
+    watcher_ = std::make_unique<DropWatcher>(cfg->drop_dir, false, cfg->settle_ms);
+    for (const auto& item : watcher_->scan_once(now_ms())) handle_drop(item);
+  }
+  s.submitted_from_drops = submitted_;
+  auto cfg_fn = [this] { return config(); };
+  auto factory = [this] { return open_store(*config()); };
+  store_->reap_expired_leases();
+  auto before = store_->counts();
+  std::int64_t total = before.available + before.retryable;
+  pool_ = std::make_unique<WorkerPool>(cfg->workers, factory, default_handlers(), cfg_fn, host_prefix() + ":batch",
+                                       true);
+  pool_->start();
+  bool tty = progress && ::isatty(2);
+  while (!pool_->wait_idle(std::chrono::steady_clock::now() + std::chrono::milliseconds(200))) {
+    if (tty) {
+      auto st = pool_->stats();
+      std::int64_t done = st.completed + st.discarded + st.failed;
+      int width = 30;
+      int filled = total > 0 ? static_cast<int>(width * std::min<std::int64_t>(done, total) / total) : width;
+      std::cerr << "\r[" << std::string(static_cast<std::size_t>(filled), '#')
+                << std::string(static_cast<std::size_t>(width - filled), '.') << "] " << done << "/" << total
+                << " jobs" << std::flush;
+    }
+  }
+  pool_->join();
+  if (tty) std::cerr << "\r" << std::string(60, ' ') << "\r" << std::flush;
+  check_inflight();
+  s.pool = pool_->stats();
+  s.counts = store_->counts();
+  return s;
+}
+
+}  // namespace mm::service

@@ -1,0 +1,56 @@
+// meshmarkd's main loop: drop-folder watcher, submissions, the worker pool, signals.
+//
+// One thread (the caller of run()) waits in poll() on a signalfd and the inotify descriptor, so
+// signals are handled synchronously: SIGTERM/SIGINT drain (stop claiming, let running jobs finish
+// within shutdown_grace_seconds, else release them to the queue), SIGHUP reloads the config and
+// logs what changed. Dropped files are moved to done/ or failed/ when their job is final.
+#pragma once
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "service/config.h"
+#include "service/drop_watcher.h"
+#include "service/worker_pool.h"
+#include "store/store.h"
+
+namespace mm::service {
+
+void setup_logging(const Config& cfg);  // spdlog: stderr or log_file, level from cfg
+
+// Opens the store of cfg.home with the master key (cfg.master_key_path(), or the environment).
+std::unique_ptr<store::Store> open_store(const Config& cfg);
+
+struct BatchSummary {
+  int submitted_from_drops = 0;
+  PoolStats pool;
+  store::QueueCounts counts;
+};
+
+class Daemon {
+ public:
+  explicit Daemon(Config cfg);
+  ~Daemon();
+  int run();  // resident; returns the process exit code after a drain
+  // meshmark run --until-empty: optional one-shot drop scan, process every claimable job, move
+  // drop files, return. progress: redraw a progress line on stderr.
+  BatchSummary run_until_empty(bool scan_drops, bool progress);
+
+ private:
+  std::shared_ptr<const Config> config() const;
+  void reload();
+  void handle_drop(const DropItem& item);
+  void check_inflight();
+  void finalize(const DropItem& item, const store::Job& job);
+
+  mutable std::mutex cfg_m_;
+  std::shared_ptr<const Config> cfg_;
+  std::unique_ptr<store::Store> store_;
+  std::unique_ptr<DropWatcher> watcher_;
+  std::unique_ptr<WorkerPool> pool_;
+  std::map<std::int64_t, DropItem> inflight_;  // job id -> dropped file
+  int submitted_ = 0;
+};
+
+}  // namespace mm::service

@@ -1,0 +1,55 @@
+// Job handlers as the daemon runs them: they read a job's payload, fetch inputs from the store and
+// blob store, call the pure functions in workers/jobs, write output files, and return the records
+// that Store::complete() writes in the same transaction that completes the job.
+//
+// Job payload contract (also for rows a PDM system inserts, docs/daemon.md):
+//   protect: {"customer": "<name>", "input_sha256": "<blob>" | "input_path": "<abs path>",
+//             "name": "<file name, its extension gives the format>", "output_format": "stl"?}
+//   detect:  {"input_sha256": "<blob>" | "input_path": "<abs path>", "name": "<file name>"}
+//   noop:    {} (queue benchmarks)
+// A handler throws PermanentError for problems retrying cannot fix (malformed mesh, unknown
+// customer, bad payload): the job is discarded at once with that reason. Any other exception is
+// retried with backoff up to max_attempts.
+#pragma once
+#include <functional>
+#include <map>
+#include <stdexcept>
+#include <string>
+
+#include "service/config.h"
+#include "store/store.h"
+
+namespace mm::service {
+
+struct PermanentError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct HandlerContext {
+  const Config& config;
+  std::string worker_id;
+};
+
+using Handler = std::function<store::JobRecords(store::Store&, const store::Job&, const HandlerContext&)>;
+using HandlerMap = std::map<std::string, Handler>;
+
+HandlerMap default_handlers();  // protect, detect, noop
+
+store::JobRecords run_protect(store::Store& st, const store::Job& job, const HandlerContext& ctx);
+store::JobRecords run_detect(store::Store& st, const store::Job& job, const HandlerContext& ctx);
+
+// Submitting: the file's bytes go into the blob store first (so the job does not depend on the
+// file staying where it is), then the job is enqueued with an idempotency key derived from what
+// it is (kind, customer, content hash, name): submitting the same thing twice returns the first
+// job. output_format "" = from the config at run time.
+store::EnqueueResult submit_protect(store::Store& st, const std::string& customer, const std::string& path,
+                                    const std::string& name, int max_attempts, const std::string& actor,
+                                    const std::string& output_format = "");
+store::EnqueueResult submit_detect(store::Store& st, const std::string& path, const std::string& name,
+                                   int max_attempts, const std::string& actor);
+
+// The output file a protect job writes for (customer, asset, name, format).
+std::string output_path_for(const Config& cfg, const std::string& customer, const std::string& name,
+                            const std::string& asset_sha256, const std::string& format);
+
+}  // namespace mm::service

@@ -1,0 +1,200 @@
+#include "service/worker_pool.h"
+
+#include <spdlog/spdlog.h>
+
+#include "meshio/mesh.h"
+
+namespace mm::service {
+
+WorkerPool::WorkerPool(int workers, StoreFactory stores, HandlerMap handlers,
+                       std::function<std::shared_ptr<const Config>()> config, std::string id_prefix,
+                       bool exit_when_empty)
+    : workers_(workers),
+      stores_(std::move(stores)),
+      handlers_(std::move(handlers)),
+      config_(std::move(config)),
+      id_prefix_(std::move(id_prefix)),
+      exit_when_empty_(exit_when_empty) {}
+
+WorkerPool::~WorkerPool() {
+  stop_claiming();
+  {
+    std::lock_guard<std::mutex> l(m_);
+    heartbeat_stop_ = true;
+  }
+  cv_.notify_all();
+  for (auto& t : threads_)
+    if (t.joinable()) t.join();
+  if (heartbeat_.joinable()) heartbeat_.join();
+}
+
+void WorkerPool::start() {
+  hb_store_ = stores_();
+  alive_ = workers_;
+  for (int i = 0; i < workers_; ++i) threads_.emplace_back([this, i] { worker_main(i); });
+  heartbeat_ = std::thread([this] { heartbeat_main(); });
+}
+
+void WorkerPool::notify() {
+  {
+    std::lock_guard<std::mutex> l(m_);
+    ++wakeups_;
+  }
+  cv_.notify_all();
+}
+
+void WorkerPool::stop_claiming() {
+  stop_ = true;
+  notify();
+}
+
+bool WorkerPool::wait_idle(std::chrono::steady_clock::time_point deadline) {
+  std::unique_lock<std::mutex> l(m_);
+  return done_cv_.wait_until(l, deadline, [this] { return alive_ == 0; });
+}
+
+int WorkerPool::release_running() {
+  std::map<std::string, std::int64_t> running;
+  {
+    std::lock_guard<std::mutex> l(m_);
+    running = running_;
+  }
+  int n = 0;
+  for (const auto& [worker, job] : running) {
+    try {
+      hb_store_->release(job, worker);
+      spdlog::warn("job {} released by {} (shutdown deadline passed)", job, worker);
+      ++n;
+    } catch (const std::exception& e) {
+      spdlog::warn("job {}: release failed: {}", job, e.what());
+    }
+  }
+  std::lock_guard<std::mutex> l(m_);
+  stats_.released += n;
+  return n;
+}
+
+void WorkerPool::join() {
+  for (auto& t : threads_)
+    if (t.joinable()) t.join();
+  {
+    std::lock_guard<std::mutex> l(m_);
+    heartbeat_stop_ = true;
+  }
+  cv_.notify_all();
+  if (heartbeat_.joinable()) heartbeat_.join();
+}
+
+PoolStats WorkerPool::stats() const {
+  std::lock_guard<std::mutex> l(m_);
+  return stats_;
+}
+
+int WorkerPool::running_jobs() const {
+  std::lock_guard<std::mutex> l(m_);
+  return static_cast<int>(running_.size());
+}
+
+void WorkerPool::heartbeat_main() {
+  std::unique_lock<std::mutex> l(m_);
+  while (!heartbeat_stop_) {
+    auto cfg = config_();
+    cv_.wait_for(l, std::chrono::seconds(cfg->heartbeat_seconds), [this] { return heartbeat_stop_; });
+    if (heartbeat_stop_) break;
+    auto running = running_;
+    l.unlock();
+    for (const auto& [worker, job] : running) {
+      try {
+        hb_store_->heartbeat(job, worker, store::Millis(cfg->lease_seconds) * 1000);
+      } catch (const store::LeaseLost&) {
+        spdlog::warn("job {}: lease lost by {} (reclaimed or cancelled)", job, worker);
+      } catch (const std::exception& e) {
+        spdlog::warn("job {}: heartbeat failed: {}", job, e.what());
+      }
+    }
+    l.lock();
+  }
+}
+
+void WorkerPool::worker_main(int index) {
+  const std::string worker_id = id_prefix_ + ":w" + std::to_string(index);
+  std::unique_ptr<store::Store> st;
+  try {
+    st = stores_();
+  } catch (const std::exception& e) {
+    spdlog::error("{}: cannot open the store: {}", worker_id, e.what());
+  }
+  std::vector<std::string> kinds;
+  for (const auto& [k, h] : handlers_) kinds.push_back(k);
+  while (st && !stop_) {
+    auto cfg = config_();
+    std::optional<store::Job> job;
+    try {
+      job = st->claim(worker_id, store::Millis(cfg->lease_seconds) * 1000, kinds);
+    } catch (const std::exception& e) {
+      spdlog::warn("{}: claim failed: {}", worker_id, e.what());
+    }
+    if (!job) {
+      if (exit_when_empty_) break;
+      std::unique_lock<std::mutex> l(m_);
+      auto seen = wakeups_;
+      cv_.wait_for(l, std::chrono::milliseconds(cfg->poll_interval_ms),
+                   [&] { return stop_ || wakeups_ != seen; });
+      continue;
+    }
+    {
+      std::lock_guard<std::mutex> l(m_);
+      running_[worker_id] = job->id;
+    }
+    auto t0 = std::chrono::steady_clock::now();
+    std::string error;
+    bool permanent = false;
+    store::JobRecords records;
+    try {
+      HandlerContext ctx{*cfg, worker_id};
+      records = handlers_.at(job->kind)(*st, *job, ctx);
+    } catch (const PermanentError& e) {
+      error = e.what();
+      permanent = true;
+    } catch (const InputError& e) {
+      error = e.what();
+      permanent = true;
+    } catch (const std::exception& e) {
+      error = e.what();
+    } catch (...) {
+      error = "unknown exception";
+    }
+    double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::string outcome;
+    try {
+      if (error.empty()) {
+        st->complete(job->id, worker_id, records);
+        outcome = "completed";
+        spdlog::info("job {} {} completed in {:.2f} s (attempt {})", job->id, job->kind, secs, job->attempt);
+      } else {
+        auto state = st->fail(job->id, worker_id, error, !permanent);
+        outcome = state == store::JobState::discarded ? "discarded" : "failed";
+        spdlog::warn("job {} {} {} after {:.2f} s (attempt {}/{}): {}", job->id, job->kind,
+                     state == store::JobState::discarded ? "discarded" : "will retry", secs, job->attempt,
+                     job->max_attempts, error);
+      }
+    } catch (const store::LeaseLost& e) {
+      outcome = "lease_lost";
+      spdlog::warn("job {}: result dropped, lease lost: {}", job->id, e.what());
+    } catch (const std::exception& e) {
+      outcome = "failed";
+      spdlog::error("job {}: cannot record outcome: {}", job->id, e.what());
+    }
+    std::lock_guard<std::mutex> l(m_);
+    running_.erase(worker_id);
+    if (outcome == "completed") ++stats_.completed;
+    else if (outcome == "discarded") ++stats_.discarded;
+    else if (outcome == "lease_lost") ++stats_.lease_lost;
+    else ++stats_.failed;
+  }
+  std::lock_guard<std::mutex> l(m_);
+  --alive_;
+  done_cv_.notify_all();
+}
+
+}  // namespace mm::service

@@ -1,0 +1,45 @@
+// Detect: which issued copy (if any) a registered suspect carries.
+//
+// Every copy of the asset is tried with its own key and nonce. The verdict names a copy only if
+// its p-value, Bonferroni-corrected for the number of copies tried, is below the threshold AND
+// the message decoded with that copy's key equals that copy's payload. An unmarked or foreign
+// mesh has no reason to pass either test, so it is never attributed.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "jobs/protect.h"
+#include "jobs/registration.h"
+
+namespace mm::jobs {
+
+struct CopyCandidate {
+  std::int64_t copy_id = 0;
+  Key key{};  // the copy's customer key version; never logged
+  Nonce nonce{};
+  std::uint64_t payload = 0;
+  WatermarkSettings settings;
+};
+
+struct CopyScore {
+  std::int64_t copy_id = 0;
+  double correlation = 0;
+  double p_value = 1;    // raw
+  double corrected_p = 1;  // min(1, p * copies tried)
+  std::uint64_t decoded_payload = 0;
+  bool payload_matches = false;
+  double bit_error_rate = 0;
+};
+
+struct Verdict {
+  bool attributed = false;
+  int copies_tried = 0;
+  CopyScore best;  // smallest corrected p (meaningful when copies_tried > 0)
+  std::vector<CopyScore> scores;  // one per candidate, in input order
+};
+
+Verdict detect_copy(const PreparedAsset& asset, const Points& registered,
+                    const std::vector<CopyCandidate>& copies, double p_threshold);
+
+}  // namespace mm::jobs

@@ -1,0 +1,232 @@
+#include "jobs/prepared_asset.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+namespace mm::jobs {
+
+namespace {
+
+constexpr char kPolyMagic[8] = {'M', 'M', 'P', 'O', 'L', 'Y', '0', '1'};
+
+struct Writer {
+  std::vector<std::uint8_t> out;
+  void raw(const void* p, std::size_t n) {
+    auto* b = static_cast<const std::uint8_t*>(p);
+    out.insert(out.end(), b, b + n);
+  }
+  void u64(std::uint64_t v) {
+    for (int i = 0; i < 8; ++i) out.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+  }
+  void i32(std::int32_t v) {
+    auto u = static_cast<std::uint32_t>(v);
+    for (int i = 0; i < 4; ++i) out.push_back(static_cast<std::uint8_t>(u >> (8 * i)));
+  }
+  void f64(double d) {
+    std::uint64_t u;
+    std::memcpy(&u, &d, 8);
+    u64(u);
+  }
+};
+
+struct Reader {
+  const std::vector<std::uint8_t>& in;
+  const std::string& source;
+  std::size_t pos = 0;
+  [[noreturn]] void fail(const std::string& why) const { throw InputError(source, why); }
+  void need(std::size_t n) const {
+    if (n > in.size() - pos) fail("truncated prepared-asset record");
+  }
+  void magic(const char (&m)[8]) {
+    need(8);
+    if (std::memcmp(in.data() + pos, m, 8) != 0) fail("not a prepared-asset record (bad magic)");
+    pos += 8;
+  }
+  std::uint64_t u64() {
+    need(8);
+    std::uint64_t v = 0;
+    for (int i = 0; i < 8; ++i) v |= std::uint64_t(in[pos + i]) << (8 * i);
+    pos += 8;
+    return v;
+  }
+  std::int32_t i32() {
+    need(4);
+    std::uint32_t v = 0;
+    for (int i = 0; i < 4; ++i) v |= std::uint32_t(in[pos + i]) << (8 * i);
+    pos += 4;
+    return static_cast<std::int32_t>(v);
+  }
+  double f64() {
+    std::uint64_t u = u64();
+    double d;
+    std::memcpy(&d, &u, 8);
+    return d;
+  }
+  // A count that must fit in what is left, given each item takes at least item_bytes.
+  std::uint64_t count(std::size_t item_bytes) {
+    std::uint64_t n = u64();
+    if (item_bytes > 0 && n > (in.size() - pos) / item_bytes) fail("count exceeds record size");
+    return n;
+  }
+};
+
+}  // namespace
+
+std::string PrepareParams::key() const {
+  // v1: control polyhedron = normalised input mesh, dense Kirchhoff basis.
+  // max_vertices only refuses inputs and never changes a prepared result, so it is not part of
+  // the key. Bump the version when the preparation itself changes (e.g. compression lands).
+  return "prepare-v1;control=normalised-input;basis=dense-kirchhoff";
+}
+
+std::string ShapeSignature::to_json() const {
+  nlohmann::json j;
+  j["vertices"] = vertices;
+  j["faces"] = faces;
+  j["box"] = {box[0], box[1], box[2]};
+  j["moments"] = {moments[0], moments[1], moments[2]};
+  return j.dump();
+}
+
+ShapeSignature ShapeSignature::from_json(const std::string& text) {
+  try {
+    auto j = nlohmann::json::parse(text);
+    ShapeSignature s;
+    s.vertices = j.at("vertices").get<int>();
+    s.faces = j.at("faces").get<int>();
+    for (int i = 0; i < 3; ++i) {
+      s.box[i] = j.at("box").at(i).get<double>();
+      s.moments[i] = j.at("moments").at(i).get<double>();
+    }
+    return s;
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError("shape signature", std::string("malformed: ") + e.what());
+  }
+}
+
+ShapeSignature shape_signature(const Mesh& mesh) {
+  ShapeSignature s;
+  s.vertices = mesh.num_vertices();
+  s.faces = mesh.num_faces();
+  if (mesh.num_vertices() == 0) return s;
+  Points p = mesh.points;
+  Eigen::Vector3d lo = p.colwise().minCoeff().transpose();
+  Eigen::Vector3d hi = p.colwise().maxCoeff().transpose();
+  double side = (hi - lo).maxCoeff();
+  if (!(side > 0)) return s;
+  for (int i = 0; i < 3; ++i) s.box[i] = (hi[i] - lo[i]) / side;
+  Eigen::RowVector3d mean = p.colwise().mean();
+  Eigen::MatrixXd c = (p.rowwise() - mean) / side;
+  Eigen::Matrix3d cov = (c.transpose() * c) / static_cast<double>(p.rows());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+  for (int i = 0; i < 3; ++i) s.moments[i] = es.eigenvalues()[i];
+  return s;
+}
+
+double signature_distance(const ShapeSignature& a, const ShapeSignature& b) {
+  double d = 0;
+  for (int i = 0; i < 3; ++i) d += std::abs(a.box[i] - b.box[i]);
+  for (int i = 0; i < 3; ++i) d += 4.0 * std::abs(std::sqrt(a.moments[i]) - std::sqrt(b.moments[i]));
+  double nv = std::max(1, std::max(a.vertices, b.vertices));
+  d += std::abs(a.vertices - b.vertices) / nv;
+  return d;
+}
+
+PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
+                            const std::string& source) {
+  const int n = original.num_vertices();
+  if (n < 4) throw InputError(source, "mesh has " + std::to_string(n) + " vertices; need at least 4");
+  if (n > params.max_vertices)
+    throw InputError(source, "mesh has " + std::to_string(n) +
+                                 " vertices; the dense spectral basis is limited to " +
+                                 std::to_string(params.max_vertices) +
+                                 " (config watermark.max_vertices) until compression lands");
+  if (original.faces.empty()) throw InputError(source, "mesh has no faces");
+  PreparedAsset a;
+  a.signature = shape_signature(original);
+  a.control = original;
+  try {
+    a.normalization = unit_box_normalization(original.points);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(source, e.what());
+  }
+  apply(a.normalization, a.control.points);
+  a.basis = compute_basis(a.control);
+  return a;
+}
+
+std::vector<std::uint8_t> encode_polyhedron(const PreparedAsset& a) {
+  Writer w;
+  w.raw(kPolyMagic, 8);
+  const Mesh& m = a.control;
+  w.u64(static_cast<std::uint64_t>(m.num_vertices()));
+  for (int i = 0; i < m.num_vertices(); ++i)
+    for (int k = 0; k < 3; ++k) w.f64(m.points(i, k));
+  w.u64(m.faces.size());
+  for (const auto& f : m.faces) {
+    w.u64(f.size());
+    for (int v : f) w.i32(v);
+  }
+  w.u64(m.creases.size());
+  for (auto [i, j] : m.creases) {
+    w.i32(i);
+    w.i32(j);
+  }
+  w.u64(m.corners.size());
+  for (int c : m.corners) w.i32(c);
+  for (int k = 0; k < 3; ++k) w.f64(a.normalization.offset[k]);
+  w.f64(a.normalization.scale);
+  std::string sig = a.signature.to_json();
+  w.u64(sig.size());
+  w.raw(sig.data(), sig.size());
+  return std::move(w.out);
+}
+
+PreparedAsset decode_prepared(const std::vector<std::uint8_t>& poly,
+                              const std::vector<std::uint8_t>& basis, const std::string& source) {
+  PreparedAsset a;
+  {
+    Reader r{poly, source};
+    r.magic(kPolyMagic);
+    auto n = r.count(24);
+    a.control.points.resize(static_cast<Eigen::Index>(n), 3);
+    for (std::uint64_t i = 0; i < n; ++i)
+      for (int k = 0; k < 3; ++k) a.control.points(static_cast<Eigen::Index>(i), k) = r.f64();
+    auto nf = r.count(8);
+    a.control.faces.resize(nf);
+    for (auto& f : a.control.faces) {
+      auto s = r.count(4);
+      f.resize(s);
+      for (auto& v : f) {
+        v = r.i32();
+        if (v < 0 || static_cast<std::uint64_t>(v) >= n) r.fail("face index out of range");
+      }
+    }
+    auto nc = r.count(8);
+    a.control.creases.resize(nc);
+    for (auto& e : a.control.creases) {
+      e.first = r.i32();
+      e.second = r.i32();
+    }
+    auto nk = r.count(4);
+    a.control.corners.resize(nk);
+    for (auto& c : a.control.corners) c = r.i32();
+    for (int k = 0; k < 3; ++k) a.normalization.offset[k] = r.f64();
+    a.normalization.scale = r.f64();
+    auto ns = r.count(1);
+    std::string sig(reinterpret_cast<const char*>(poly.data() + r.pos), ns);
+    r.pos += ns;
+    a.signature = ShapeSignature::from_json(sig);
+    if (r.pos != poly.size()) r.fail("trailing bytes after polyhedron record");
+  }
+  a.basis = deserialize_basis(basis, source);
+  if (a.basis.num_vertices() != a.control.num_vertices())
+    throw InputError(source, "basis size does not match the polyhedron");
+  return a;
+}
+
+}  // namespace mm::jobs
