@@ -1,0 +1,180 @@
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "codec/codec_test_meshes.h"
+#include "codec/stream.h"
+#include "common/shared_meshes.h"
+#include "meshio/read_mesh.h"
+
+namespace {
+
+std::vector<std::pair<int, int>> sorted_creases(const mm::Mesh& m) {
+  std::vector<std::pair<int, int>> c;
+  for (auto [a, b] : m.creases) c.emplace_back(std::min(a, b), std::max(a, b));
+  std::sort(c.begin(), c.end());
+  c.erase(std::unique(c.begin(), c.end()), c.end());
+  return c;
+}
+
+// Round trip: quantised values bit-exact, topology identical, re-encoding byte-identical.
+void expect_round_trip(const mm::Mesh& m, int bits, const std::string& name) {
+  SCOPED_TRACE(name + " at " + std::to_string(bits) + " bits");
+  mm::CodecParams params;
+  params.quant_bits = bits;
+  params.metadata = {{"asset", "A-17"}, {"copy", "c0042"}};
+  const auto bytes = mm::encode(m, params);
+  const mm::DecodedStream d = mm::decode(bytes, name);
+
+  const mm::Quantization q = mm::quantization_for(m.points, bits);
+  EXPECT_EQ(d.quantization.bits, bits);
+  EXPECT_EQ(d.quantization.step, q.step);
+  EXPECT_EQ(d.quantization.offset, q.offset);
+  EXPECT_EQ(d.grid, mm::quantize(m.points, q));
+  // Exact equality of doubles: decode(encode(m)) == dequantize(quantize(m)).
+  EXPECT_TRUE(d.mesh.points == mm::quantized_positions(m.points, bits));
+  EXPECT_LE((d.mesh.points - m.points).cwiseAbs().maxCoeff(), 0.5 * q.step * (1 + 1e-9));
+  EXPECT_EQ(d.mesh.faces, m.faces);
+  EXPECT_EQ(d.mesh.creases, sorted_creases(m));
+  std::vector<int> corners = m.corners;
+  std::sort(corners.begin(), corners.end());
+  EXPECT_EQ(d.mesh.corners, corners);
+  EXPECT_EQ(d.metadata, params.metadata);
+  EXPECT_EQ(mm::encode(d.mesh, params), bytes);
+}
+
+}  // namespace
+
+TEST(Stream, RoundTripSynthetic) {
+  for (int bits : {8, 10, 12, 16, 20, 24}) {
+    expect_round_trip(mm::test::crease_cube(), bits, "cube");
+    expect_round_trip(mm::test::wavy_grid(17, 11, 3), bits, "grid");
+    expect_round_trip(mm::test::wavy_grid(60, 45, 9), bits, "big grid");
+  }
+}
+
+TEST(Stream, RoundTripSharedMeshes) {
+  MM_REQUIRE_SHARED_MESHES();
+  for (const char* name : {"fandisk_quads.off", "chamfer-cube.off", "sphere_low.off"}) {
+    mm::Mesh m = mm::read_mesh(mm::test::shared_mesh(name));
+    // Tag the sharpest-looking edges so creases are exercised on real topology: every 7th edge.
+    const auto edges = mm::unique_edges(m);
+    for (size_t e = 0; e < edges.size(); e += 7) m.creases.push_back(edges[e]);
+    m.corners = {0, m.num_vertices() / 2, m.num_vertices() - 1};
+    for (int bits : {10, 12, 16, 24}) expect_round_trip(m, bits, name);
+  }
+}
+
+TEST(Stream, VertexOrderIsPreserved) {
+  // The same geometry in two vertex orders gives streams whose decoded points follow each order.
+  const mm::Mesh a = mm::test::wavy_grid(12, 9, 1);
+  mm::Mesh b = a;
+  const int n = a.num_vertices();
+  std::vector<int> perm(n);  // new index of old vertex i
+  for (int i = 0; i < n; ++i) perm[i] = (i * 37 + 5) % n;  // 37 is coprime with 108
+  for (int i = 0; i < n; ++i) b.points.row(perm[i]) = a.points.row(i);
+  for (auto& f : b.faces)
+    for (int& v : f) v = perm[v];
+  for (auto& [x, y] : b.creases) {
+    x = perm[x];
+    y = perm[y];
+  }
+  for (int& c : b.corners) c = perm[c];
+  const auto da = mm::decode(mm::encode(a), "a");
+  const auto db = mm::decode(mm::encode(b), "b");
+  EXPECT_EQ(da.quantization.step, db.quantization.step);
+  for (int i = 0; i < n; ++i) EXPECT_EQ(da.grid.row(i), db.grid.row(perm[i]));
+  EXPECT_EQ(db.mesh.faces, b.faces);
+}
+
+TEST(Stream, EmptyAndSingleVertexMeshes) {
+  mm::Mesh empty;
+  empty.points.resize(0, 3);
+  const auto d = mm::decode(mm::encode(empty), "empty");
+  EXPECT_EQ(d.mesh.num_vertices(), 0);
+  EXPECT_TRUE(d.mesh.faces.empty());
+  mm::Mesh one;
+  one.points.resize(1, 3);
+  one.points << 4, 5, 6;
+  EXPECT_TRUE(mm::decode(mm::encode(one), "one").mesh.points == one.points);
+}
+
+TEST(Stream, EncoderRejectsWhatTheFormatCannotHold) {
+  const mm::Mesh good = mm::test::crease_cube();
+  auto expect_reject = [](const mm::Mesh& m, const std::string& fragment, mm::CodecParams p = {}) {
+    try {
+      mm::encode(m, p);
+      ADD_FAILURE() << "accepted, expected: " << fragment;
+    } catch (const mm::InputError& e) {
+      EXPECT_EQ(e.source(), "encode");
+      EXPECT_NE(e.reason().find(fragment), std::string::npos) << e.what();
+    }
+  };
+  mm::Mesh m = good;
+  m.faces.push_back({0, 1, 2, 3, 4});
+  expect_reject(m, "triangles and quads only");
+  m = good;
+  m.faces[2][1] = 8;
+  expect_reject(m, "out of range");
+  m = good;
+  m.faces[2] = {0, 1, 1};
+  expect_reject(m, "repeats");
+  m = good;
+  m.creases.push_back({0, 7});  // a diagonal, not an edge
+  expect_reject(m, "not an edge");
+  m = good;
+  m.corners.push_back(-1);
+  expect_reject(m, "corner");
+  m = good;
+  m.points(3, 2) = std::numeric_limits<double>::infinity();
+  expect_reject(m, "non-finite");
+  mm::CodecParams p;
+  p.quant_bits = 30;
+  expect_reject(good, "quantisation bits", p);
+  p = {};
+  p.metadata["bad key"] = "x";
+  expect_reject(good, "metadata key", p);
+  p = {};
+  p.metadata["k"] = std::string(2000, 'v');
+  expect_reject(good, "too long", p);
+}
+
+TEST(Stream, FilesAreWrittenAtomicallyAndReadBack) {
+  const auto dir = std::filesystem::temp_directory_path() / ("mm_codec_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string path = (dir / "cube.mmc").string();
+  const auto bytes = mm::encode(mm::test::crease_cube());
+  mm::write_stream_file(path, bytes);
+  EXPECT_EQ(mm::read_stream_file(path), bytes);
+  EXPECT_EQ(mm::decode_file(path).mesh.faces, mm::test::crease_cube().faces);
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir), {}), 1);
+  EXPECT_THROW(mm::write_stream_file((dir / "missing" / "x.mmc").string(), bytes), mm::InputError);
+  EXPECT_THROW(mm::read_stream_file((dir / "nope.mmc").string()), mm::InputError);
+  {
+    std::ofstream(dir / "text.mmc") << "OFF\n3 1 0\n";
+  }
+  try {
+    mm::decode_file((dir / "text.mmc").string());
+    ADD_FAILURE();
+  } catch (const mm::InputError& e) {
+    EXPECT_EQ(e.source(), (dir / "text.mmc").string());
+    EXPECT_NE(e.reason().find("magic"), std::string::npos);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Stream, SizesAreReported) {
+  MM_REQUIRE_SHARED_MESHES();
+  const mm::Mesh m = mm::read_mesh(mm::test::shared_mesh("fandisk_quads.off"));
+  for (int bits : {12, 16}) {
+    mm::CodecParams p;
+    p.quant_bits = bits;
+    const size_t size = mm::encode(m, p).size();
+    std::cout << "fandisk_quads.off (" << m.num_vertices() << " vertices, " << m.num_faces()
+              << " faces) at " << bits << " bits: " << size << " bytes\n";
+    // Far below the 3 x 4-byte float + 4 x 4-byte index raw size.
+    EXPECT_LT(size, m.num_vertices() * 12u + m.num_faces() * 16u);
+  }
+}

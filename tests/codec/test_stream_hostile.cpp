@@ -1,0 +1,302 @@
+// Hostile and damaged streams: every one must be refused with InputError (or, for fuzzed bytes
+// that happen to form a valid stream, decode to a consistent mesh), never crash or over-allocate.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <random>
+
+#include "codec/codec_test_meshes.h"
+#include "codec/stream.h"
+#include "codec/stream_detail.h"
+#include "common/shared_meshes.h"
+#include "meshio/read_mesh.h"
+
+namespace cd = mm::codec_detail;
+
+namespace {
+
+std::vector<std::uint8_t> valid_stream() {
+  mm::CodecParams p;
+  p.metadata = {{"asset", "A-17"}, {"copy", "c0042"}};
+  return mm::encode(mm::test::wavy_grid(9, 7, 5), p);
+}
+
+// Recomputes the trailing CRC so damage behind the checksum reaches the deeper checks.
+void reseal(std::vector<std::uint8_t>& s) {
+  if (s.size() < 4) return;
+  const std::uint32_t crc = cd::checksum(s.data(), s.size() - 4);
+  for (int i = 0; i < 4; ++i) s[s.size() - 4 + i] = static_cast<std::uint8_t>(crc >> (8 * i));
+}
+
+std::string rejection(const std::vector<std::uint8_t>& s) {
+  try {
+    mm::decode(s, "hostile.mmc");
+  } catch (const mm::InputError& e) {
+    EXPECT_EQ(e.source(), "hostile.mmc");
+    return e.reason();
+  }
+  return "";
+}
+
+#define EXPECT_REJECTED_WITH(stream, fragment)                                        \
+  do {                                                                                \
+    const std::string why = rejection(stream);                                        \
+    EXPECT_NE(why, "") << "accepted a stream that should fail with: " << fragment;    \
+    EXPECT_NE(why.find(fragment), std::string::npos) << "reason was: " << why;        \
+  } while (0)
+
+// A decoded mesh must always be internally consistent.
+void expect_consistent(const mm::DecodedStream& d) {
+  const int n = d.mesh.num_vertices();
+  ASSERT_EQ(d.grid.rows(), n);
+  for (const auto& f : d.mesh.faces) {
+    ASSERT_TRUE(f.size() == 3 || f.size() == 4);
+    for (int v : f) ASSERT_TRUE(v >= 0 && v < n);
+  }
+  for (auto [a, b] : d.mesh.creases) ASSERT_TRUE(a >= 0 && a < b && b < n);
+  for (int c : d.mesh.corners) ASSERT_TRUE(c >= 0 && c < n);
+  ASSERT_TRUE(d.mesh.points.allFinite());
+}
+
+}  // namespace
+
+TEST(StreamHostile, EveryTruncationIsRejected) {
+  const auto s = valid_stream();
+  for (size_t len = 0; len < s.size(); ++len) {
+    std::vector<std::uint8_t> t(s.begin(), s.begin() + len);
+    EXPECT_NE(rejection(t), "") << "truncated to " << len;
+  }
+}
+
+TEST(StreamHostile, EveryBitFlipIsRejected) {
+  const auto s = valid_stream();
+  for (size_t i = 0; i < s.size(); ++i)
+    for (int bit = 0; bit < 8; ++bit) {
+      auto t = s;
+      t[i] ^= static_cast<std::uint8_t>(1u << bit);
+      EXPECT_NE(rejection(t), "") << "byte " << i << " bit " << bit;
+    }
+}
+
+TEST(StreamHostile, BadMagicVersionAndTrailingBytes) {
+  auto s = valid_stream();
+  auto t = s;
+  t[0] = 'X';
+  EXPECT_REJECTED_WITH(t, "bad magic");
+  t = s;
+  t[4] = 2;
+  reseal(t);
+  EXPECT_REJECTED_WITH(t, "unsupported format version 2");
+  t = s;
+  t.insert(t.end() - 4, 0);
+  reseal(t);
+  EXPECT_NE(rejection(t), "");
+  t = s;
+  t.push_back(0);
+  EXPECT_REJECTED_WITH(t, "checksum");
+  EXPECT_REJECTED_WITH(std::vector<std::uint8_t>{}, "truncated");
+}
+
+TEST(StreamHostile, HeaderFieldsOutOfRange) {
+  const auto s = valid_stream();
+  const cd::Parts parts = cd::split(s.data(), s.size(), "valid");
+
+  cd::Header h = parts.header;
+  h.flags |= 0x80;
+  EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "unknown flags");
+  h = parts.header;
+  h.bits = 31;
+  EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "quantisation bits 31");
+  h = parts.header;
+  h.step = -1;
+  EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "step is not positive");
+  h = parts.header;
+  h.offset[1] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "not finite");
+  // Huge counts: refused from the header alone, before any allocation.
+  h = parts.header;
+  h.vertices = 0xFFFFFFFFu;
+  EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "vertex count 4294967295 exceeds the limit");
+  h = parts.header;
+  h.vertices = mm::kMaxStreamVertices;
+  EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "inconsistent with the counts");
+  h = parts.header;
+  h.faces = 1u << 24;
+  EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "inconsistent with the counts");
+  h = parts.header;
+  h.corners = h.vertices + 1;
+  EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "corner count");
+  h = parts.header;
+  h.creases += 1;
+  EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "crease flags mark");
+  h = parts.header;
+  h.metadata_entries = 1000;
+  EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "metadata entry count");
+  // Declared payload size disagreeing with the frame.
+  auto t = cd::join(parts.header, parts.raw, 19);
+  ASSERT_NO_THROW(mm::decode(t, "rejoined"));
+  h = parts.header;
+  auto raw = parts.raw;
+  raw.push_back(0);
+  EXPECT_REJECTED_WITH(cd::join(h, raw, 19), "trailing bytes");
+  EXPECT_REJECTED_WITH(cd::join(h, raw, 0), "trailing bytes");
+}
+
+TEST(StreamHostile, PayloadContentsBehindAValidChecksum) {
+  // A 2x2-vertex single quad, hand-built payload: face-size bits, 4 indices, crease bits,
+  // coordinates (plain), so each field can be broken on its own.
+  cd::Header h;
+  h.flags = 0;  // plain coordinates
+  h.bits = 12;
+  h.vertices = 4;
+  h.faces = 1;
+  auto payload = [](std::vector<std::uint8_t> face, std::uint8_t crease_bits,
+                    std::vector<std::uint8_t> coords) {
+    std::vector<std::uint8_t> raw;
+    raw.push_back(0x01);  // face 0 is a quad
+    for (std::uint8_t b : face) raw.push_back(b);
+    raw.push_back(crease_bits);
+    for (std::uint8_t b : coords) raw.push_back(b);
+    return raw;
+  };
+  const std::vector<std::uint8_t> coords(12, 0);
+  // Indices 0, 1, 2, 3: first relative to 0, the others zigzagged relative to the first.
+  const auto good = payload({0, 2, 4, 6}, 0, coords);
+  const auto ok = mm::decode(cd::join(h, good, 0), "hand");
+  EXPECT_EQ(ok.mesh.faces, (std::vector<std::vector<int>>{{0, 1, 2, 3}}));
+  EXPECT_EQ(mm::decode(cd::join(h, good, 19), "hand").mesh.faces, ok.mesh.faces);
+
+  EXPECT_REJECTED_WITH(cd::join(h, payload({0, 2, 4, 8}, 0, coords), 0), "vertex index 4 out of range");
+  EXPECT_REJECTED_WITH(cd::join(h, payload({0, 2, 4, 1}, 0, coords), 0), "vertex index -1 out of range");
+  EXPECT_REJECTED_WITH(cd::join(h, payload({0, 2, 2, 6}, 0, coords), 0), "repeats a vertex");
+  EXPECT_REJECTED_WITH(cd::join(h, payload({0, 2, 4, 6}, 0xF0, coords), 0), "padding bits");
+  EXPECT_REJECTED_WITH(cd::join(h, payload({0, 0x82, 0x00, 4, 6}, 0, coords), 0),
+                       "non-canonical varint");
+  {
+    auto raw = good;
+    raw[0] = 0x03;  // padding bit in the face-size bitset
+    EXPECT_REJECTED_WITH(cd::join(h, raw, 0), "padding bits");
+  }
+  {
+    auto c = coords;
+    c[5] = 0xFF;  // 0xFF 0x1F = 4095 would fit, but 0xFF 0x7F exceeds the 12-bit grid
+    c[6] = 0x7F;
+    c.pop_back();
+    EXPECT_REJECTED_WITH(cd::join(h, payload({0, 2, 4, 6}, 0, c), 0), "exceeds the limit");
+  }
+  {
+    cd::Header hd = h;
+    hd.flags = cd::kFlagDeltaCoords;  // a delta stepping below zero leaves the grid
+    auto c = coords;
+    c[1] = 1;  // zigzag 1 = -1
+    EXPECT_REJECTED_WITH(cd::join(hd, payload({0, 2, 4, 6}, 0, c), 0), "outside the 12-bit grid");
+  }
+  {
+    cd::Header hc = h;
+    hc.creases = 1;
+    hc.corners = 1;
+    auto raw = payload({0, 2, 4, 6}, 0x01, coords);
+    raw.insert(raw.begin() + 6, 0x04);  // corner gap 4 -> index 4, out of range
+    EXPECT_REJECTED_WITH(cd::join(hc, raw, 0), "corner index 4 out of range");
+    raw[6] = 0x03;
+    const auto d = mm::decode(cd::join(hc, raw, 0), "hand");
+    EXPECT_EQ(d.mesh.corners, std::vector<int>{3});
+    EXPECT_EQ(d.mesh.creases, (std::vector<std::pair<int, int>>{{0, 1}}));  // first sorted edge
+  }
+  {
+    cd::Header hm = h;
+    hm.metadata_entries = 2;
+    auto raw = good;
+    for (int b : {1, 98, 1, 120, 1, 97, 1, 121}) raw.push_back(static_cast<std::uint8_t>(b));
+    EXPECT_REJECTED_WITH(cd::join(hm, raw, 0), "not strictly increasing");
+    raw = good;
+    for (int b : {1, 32, 0, 1, 98, 0}) raw.push_back(static_cast<std::uint8_t>(b));
+    EXPECT_REJECTED_WITH(cd::join(hm, raw, 0), "invalid metadata key");
+  }
+}
+
+TEST(StreamHostile, DecompressionBombIsRefusedBeforeAllocation) {
+  // 8 MiB of zeros is a valid payload for ~2.8M vertices at one spot: but it compresses far
+  // beyond any real control polyhedron, so the ratio limit refuses it.
+  cd::Header h;
+  h.flags = cd::kFlagDeltaCoords;
+  h.vertices = (8u << 20) / 3;
+  std::vector<std::uint8_t> raw(3u * h.vertices, 0);
+  const auto s = cd::join(h, raw, 3);
+  ASSERT_LT(s.size() * cd::kMaxExpansion, raw.size());
+  EXPECT_REJECTED_WITH(s, "expands beyond the allowed ratio");
+  // The same content stored uncompressed is legitimate: memory follows the bytes present.
+  const auto d = mm::decode(cd::join(h, raw, 0), "stored");
+  EXPECT_EQ(d.mesh.num_vertices(), static_cast<int>(h.vertices));
+}
+
+TEST(StreamHostile, NotAZstdFrame) {
+  const auto s = valid_stream();
+  const cd::Parts parts = cd::split(s.data(), s.size(), "valid");
+  auto t = cd::join(parts.header, parts.raw, 19);
+  ASSERT_TRUE(parts.header.flags & cd::kFlagZstd || t.size() > 0);
+  cd::Header h = parts.header;
+  h.flags |= cd::kFlagZstd;
+  // Stored payload bytes under a zstd flag: join with level 0 clears the flag, so set it by hand.
+  auto stored = cd::join(h, parts.raw, 0);
+  stored[5] |= cd::kFlagZstd;
+  reseal(stored);
+  EXPECT_REJECTED_WITH(stored, "zstd");
+}
+
+TEST(StreamHostile, SeededFuzzNeverCrashes) {
+  // Three kinds of damage, 20k mutants in all: raw byte damage (mostly caught by the CRC),
+  // damage with the CRC recomputed (reaches the header and frame checks), and damage to the
+  // decompressed payload re-wrapped in a valid frame and CRC (reaches the payload checks).
+  std::vector<std::vector<std::uint8_t>> seeds = {valid_stream(), mm::encode(mm::test::crease_cube())};
+  if (mm::test::shared_meshes_present()) {
+    mm::CodecParams p;
+    p.quant_bits = 16;
+    seeds.push_back(mm::encode(mm::read_mesh(mm::test::shared_mesh("chamfer-cube.off")), p));
+  }
+  std::mt19937_64 rng(20261122);
+  int decoded = 0, rejected = 0;
+  const int iterations = 20000;
+  for (int it = 0; it < iterations; ++it) {
+    const auto& seed = seeds[it % seeds.size()];
+    const int kind = it % 3;
+    std::vector<std::uint8_t> t;
+    auto mutate = [&](std::vector<std::uint8_t>& b) {
+      const int edits = 1 + static_cast<int>(rng() % 4);
+      for (int e = 0; e < edits && !b.empty(); ++e) {
+        const size_t pos = rng() % b.size();
+        switch (rng() % 5) {
+          case 0: b[pos] ^= static_cast<std::uint8_t>(1u << (rng() % 8)); break;
+          case 1: b[pos] = static_cast<std::uint8_t>(rng()); break;
+          case 2: b.erase(b.begin() + pos); break;
+          case 3: b.insert(b.begin() + pos, static_cast<std::uint8_t>(rng())); break;
+          default: b[pos] = (rng() & 1) ? 0xFF : 0x00; break;
+        }
+      }
+    };
+    if (kind == 0) {
+      t = seed;
+      mutate(t);
+    } else if (kind == 1) {
+      t = seed;
+      mutate(t);
+      reseal(t);
+    } else {
+      cd::Parts parts = cd::split(seed.data(), seed.size(), "seed");
+      mutate(parts.raw);
+      if (rng() % 4 == 0) parts.header.faces += static_cast<std::uint32_t>(rng() % 3) - 1;
+      t = cd::join(parts.header, parts.raw, (rng() & 1) ? 19 : 0);
+    }
+    try {
+      const mm::DecodedStream d = mm::decode(t, "fuzz");
+      expect_consistent(d);
+      ++decoded;
+    } catch (const mm::InputError&) {
+      ++rejected;
+    }
+  }
+  std::cout << "fuzz: " << iterations << " mutants, " << rejected << " rejected, " << decoded
+            << " decoded consistently\n";
+  EXPECT_EQ(decoded + rejected, iterations);
+  EXPECT_GT(rejected, iterations / 2);
+}

@@ -1,0 +1,532 @@
+#include "codec/stream.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+#include <zlib.h>
+#include <zstd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+
+#include "codec/stream_detail.h"
+
+namespace mm {
+namespace {
+
+using codec_detail::Header;
+
+// ---------------------------------------------------------------------------------------------
+// Little-endian primitives and LEB128 varints.
+
+class Writer {
+ public:
+  std::vector<std::uint8_t> bytes;
+  void u8(std::uint8_t v) { bytes.push_back(v); }
+  void f64(double v) {
+    std::uint64_t u;
+    std::memcpy(&u, &v, 8);
+    for (int i = 0; i < 8; ++i) bytes.push_back(static_cast<std::uint8_t>(u >> (8 * i)));
+  }
+  void varint(std::uint64_t v) {
+    while (v >= 0x80) {
+      bytes.push_back(static_cast<std::uint8_t>(v | 0x80));
+      v >>= 7;
+    }
+    bytes.push_back(static_cast<std::uint8_t>(v));
+  }
+  void raw(const void* p, std::size_t n) {
+    const auto* b = static_cast<const std::uint8_t*>(p);
+    bytes.insert(bytes.end(), b, b + n);
+  }
+};
+
+// Bounds-checked reader: every read names what it was reading when the bytes run out.
+class Reader {
+ public:
+  Reader(const std::uint8_t* data, std::size_t size, const std::string& source, const char* where)
+      : p_(data), end_(data + size), source_(source), where_(where) {}
+  std::size_t remaining() const { return static_cast<std::size_t>(end_ - p_); }
+  [[noreturn]] void fail(const std::string& reason) const {
+    throw InputError(source_, std::string(where_) + ": " + reason);
+  }
+  void need(std::size_t n, const char* what) const {
+    if (remaining() < n) fail(std::string("truncated while reading ") + what);
+  }
+  std::uint8_t u8(const char* what) {
+    need(1, what);
+    return *p_++;
+  }
+  double f64(const char* what) {
+    need(8, what);
+    std::uint64_t u = 0;
+    for (int i = 0; i < 8; ++i) u |= static_cast<std::uint64_t>(p_[i]) << (8 * i);
+    p_ += 8;
+    double v;
+    std::memcpy(&v, &u, 8);
+    return v;
+  }
+  // Canonical (shortest) LEB128 no larger than max.
+  std::uint64_t varint(const char* what, std::uint64_t max) {
+    std::uint64_t v = 0;
+    for (int shift = 0;; shift += 7) {
+      if (shift > 63) fail(std::string("overlong varint in ") + what);
+      const std::uint8_t b = u8(what);
+      const std::uint64_t part = static_cast<std::uint64_t>(b & 0x7F);
+      if (shift == 63 && part > 1) fail(std::string("varint overflow in ") + what);
+      v |= part << shift;
+      if (!(b & 0x80)) {
+        if (b == 0 && shift > 0) fail(std::string("non-canonical varint in ") + what);
+        break;
+      }
+    }
+    if (v > max)
+      fail(std::string(what) + " " + std::to_string(v) + " exceeds the limit " + std::to_string(max));
+    return v;
+  }
+  const std::uint8_t* bytes(std::size_t n, const char* what) {
+    need(n, what);
+    const std::uint8_t* r = p_;
+    p_ += n;
+    return r;
+  }
+  const std::uint8_t* position() const { return p_; }
+
+ private:
+  const std::uint8_t* p_;
+  const std::uint8_t* end_;
+  const std::string& source_;
+  const char* where_;
+};
+
+std::uint64_t zigzag(std::int64_t v) {
+  return (static_cast<std::uint64_t>(v) << 1) ^ static_cast<std::uint64_t>(v >> 63);
+}
+std::int64_t unzigzag(std::uint64_t u) {
+  return static_cast<std::int64_t>(u >> 1) ^ -static_cast<std::int64_t>(u & 1);
+}
+
+std::size_t bitset_bytes(std::size_t bits) { return (bits + 7) / 8; }
+
+// Reads a bitset of `bits` bits whose padding bits must be zero.
+std::vector<bool> read_bitset(Reader& in, std::size_t bits, const char* what) {
+  const std::uint8_t* b = in.bytes(bitset_bytes(bits), what);
+  std::vector<bool> out(bits);
+  for (std::size_t i = 0; i < bits; ++i) out[i] = (b[i / 8] >> (i % 8)) & 1;
+  if (bits % 8 && (b[bits / 8] >> (bits % 8)) != 0) in.fail(std::string("padding bits set in ") + what);
+  return out;
+}
+
+void write_bitset(Writer& out, const std::vector<bool>& bits) {
+  std::vector<std::uint8_t> b(bitset_bytes(bits.size()), 0);
+  for (std::size_t i = 0; i < bits.size(); ++i)
+    if (bits[i]) b[i / 8] |= static_cast<std::uint8_t>(1u << (i % 8));
+  out.raw(b.data(), b.size());
+}
+
+constexpr std::size_t kMaxMetadataEntries = 32, kMaxKeyBytes = 64, kMaxValueBytes = 1024;
+
+bool valid_key(const std::string& k) {
+  if (k.empty() || k.size() > kMaxKeyBytes) return false;
+  return std::all_of(k.begin(), k.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+           c == '_' || c == '.' || c == '-';
+  });
+}
+
+// Largest varint byte count of a zigzagged coordinate delta (|delta| < 2^24 -> 25 bits).
+constexpr std::size_t kMaxCoordVarint = 4;
+constexpr std::size_t kMaxIndexVarint = 5;
+
+// Payload size bounds implied by the counts: every element takes at least its minimum encoding
+// and at most its maximum one.
+std::pair<std::uint64_t, std::uint64_t> payload_bounds(const Header& h) {
+  const std::uint64_t v = h.vertices, f = h.faces, c = h.corners, m = h.metadata_entries;
+  const std::uint64_t lo = 3 * v + bitset_bytes(f) + 3 * f + c + 2 * m + m;
+  const std::uint64_t hi = 3 * v * kMaxCoordVarint + bitset_bytes(f) + 4 * f * kMaxIndexVarint +
+                           bitset_bytes(4 * f) + c * kMaxIndexVarint +
+                           m * (2 * 2 + kMaxKeyBytes + kMaxValueBytes);
+  return {lo, hi};
+}
+
+// ---------------------------------------------------------------------------------------------
+// Encoder
+
+void validate_for_encoding(const Mesh& mesh, const CodecParams& params) {
+  const std::string src = "encode";
+  if (params.quant_bits < kMinQuantBits || params.quant_bits > kMaxQuantBits)
+    throw InputError(src, "quantisation bits " + std::to_string(params.quant_bits) + " outside [" +
+                              std::to_string(kMinQuantBits) + ", " + std::to_string(kMaxQuantBits) + "]");
+  if (static_cast<std::uint64_t>(mesh.num_vertices()) > kMaxStreamVertices)
+    throw InputError(src, "too many vertices for a stream");
+  if (mesh.faces.size() > kMaxStreamFaces) throw InputError(src, "too many faces for a stream");
+  const int n = mesh.num_vertices();
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    const auto& face = mesh.faces[f];
+    if (face.size() != 3 && face.size() != 4)
+      throw InputError(src, "face " + std::to_string(f) + " has " + std::to_string(face.size()) +
+                                " vertices; streams hold triangles and quads only");
+    for (std::size_t k = 0; k < face.size(); ++k) {
+      if (face[k] < 0 || face[k] >= n)
+        throw InputError(src, "face " + std::to_string(f) + " has vertex index out of range");
+      for (std::size_t j = 0; j < k; ++j)
+        if (face[j] == face[k])
+          throw InputError(src, "face " + std::to_string(f) + " repeats a vertex");
+    }
+  }
+  for (int c : mesh.corners)
+    if (c < 0 || c >= n) throw InputError(src, "corner index out of range");
+  if (params.metadata.size() > kMaxMetadataEntries) throw InputError(src, "too many metadata entries");
+  for (const auto& [k, v] : params.metadata) {
+    if (!valid_key(k)) throw InputError(src, "metadata key is empty, too long or has characters other than [A-Za-z0-9_.-]");
+    if (v.size() > kMaxValueBytes) throw InputError(src, "metadata value for '" + k + "' is too long");
+  }
+}
+
+// The payload, with coordinates either delta-coded from the previous vertex or stored as is.
+std::vector<std::uint8_t> build_payload(const Mesh& mesh, const GridPoints& grid,
+                                        const std::vector<bool>& crease_bits,
+                                        const std::vector<int>& corners,
+                                        const std::map<std::string, std::string>& metadata,
+                                        bool delta) {
+  Writer w;
+  std::vector<bool> quads(mesh.faces.size());
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) quads[f] = mesh.faces[f].size() == 4;
+  write_bitset(w, quads);
+  // First index of a face relative to the previous face's first index; the others relative to
+  // their face's first: neighbouring faces share nearby indices, so the numbers stay small.
+  std::int64_t prev_first = 0;
+  for (const auto& face : mesh.faces) {
+    w.varint(zigzag(face[0] - prev_first));
+    for (std::size_t k = 1; k < face.size(); ++k) w.varint(zigzag(face[k] - face[0]));
+    prev_first = face[0];
+  }
+  write_bitset(w, crease_bits);
+  int prev_corner = -1;
+  for (int c : corners) {
+    w.varint(static_cast<std::uint64_t>(c - prev_corner - 1));
+    prev_corner = c;
+  }
+  // One axis after another: each axis's deltas have their own statistics.
+  for (int a = 0; a < 3; ++a) {
+    std::int64_t prev = 0;
+    for (Eigen::Index i = 0; i < grid.rows(); ++i) {
+      w.varint(delta ? zigzag(grid(i, a) - prev) : static_cast<std::uint64_t>(grid(i, a)));
+      prev = grid(i, a);
+    }
+  }
+  for (const auto& [k, v] : metadata) {
+    w.varint(k.size());
+    w.raw(k.data(), k.size());
+    w.varint(v.size());
+    w.raw(v.data(), v.size());
+  }
+  return std::move(w.bytes);
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Outer layer
+
+namespace codec_detail {
+
+std::uint32_t checksum(const std::uint8_t* data, std::size_t size) {
+  uLong crc = crc32(0L, Z_NULL, 0);
+  while (size > 0) {
+    const uInt chunk = static_cast<uInt>(std::min<std::size_t>(size, 1u << 30));
+    crc = crc32(crc, data, chunk);
+    data += chunk;
+    size -= chunk;
+  }
+  return static_cast<std::uint32_t>(crc);
+}
+
+std::vector<std::uint8_t> join(Header h, const std::vector<std::uint8_t>& raw, int zstd_level) {
+  std::vector<std::uint8_t> payload;
+  h.raw_size = raw.size();
+  if (zstd_level > 0) {
+    h.flags |= kFlagZstd;
+    payload.resize(ZSTD_compressBound(raw.size()));
+    const std::size_t n = ZSTD_compress(payload.data(), payload.size(), raw.data(), raw.size(),
+                                        std::min(zstd_level, ZSTD_maxCLevel()));
+    if (ZSTD_isError(n)) throw InputError("encode", std::string("zstd: ") + ZSTD_getErrorName(n));
+    payload.resize(n);
+  } else {
+    h.flags &= static_cast<std::uint8_t>(~kFlagZstd);
+    payload = raw;
+  }
+  Writer w;
+  w.raw(kMagic, 4);
+  w.u8(h.version);
+  w.u8(h.flags);
+  w.u8(h.bits);
+  for (int a = 0; a < 3; ++a) w.f64(h.offset[a]);
+  w.f64(h.step);
+  w.varint(h.vertices);
+  w.varint(h.faces);
+  w.varint(h.creases);
+  w.varint(h.corners);
+  w.varint(h.metadata_entries);
+  w.varint(h.raw_size);
+  w.raw(payload.data(), payload.size());
+  const std::uint32_t crc = checksum(w.bytes.data(), w.bytes.size());
+  for (int i = 0; i < 4; ++i) w.u8(static_cast<std::uint8_t>(crc >> (8 * i)));
+  return std::move(w.bytes);
+}
+
+Parts split(const std::uint8_t* data, std::size_t size, const std::string& source) {
+  const std::size_t min_size = kFixedHeaderBytes + 6 + kChecksumBytes;
+  if (size >= 4 && std::memcmp(data, kMagic, 4) != 0)
+    throw InputError(source, "not a meshmark stream (bad magic)");
+  if (size < min_size)
+    throw InputError(source, "truncated: " + std::to_string(size) + " bytes, a stream has at least " +
+                                 std::to_string(min_size));
+  if (size > kMaxStreamBytes) throw InputError(source, "stream larger than the 256 MiB limit");
+  if (data[4] != kVersion)
+    throw InputError(source, "unsupported format version " + std::to_string(data[4]) +
+                                 " (this build reads version " + std::to_string(kVersion) + ")");
+  const std::size_t body = size - kChecksumBytes;
+  std::uint32_t stored = 0;
+  for (int i = 0; i < 4; ++i) stored |= static_cast<std::uint32_t>(data[body + i]) << (8 * i);
+  if (checksum(data, body) != stored)
+    throw InputError(source, "checksum mismatch: the stream is corrupted or truncated");
+
+  Parts parts;
+  Header& h = parts.header;
+  Reader in(data + 4, body - 4, source, "header");
+  h.version = in.u8("version");
+  h.flags = in.u8("flags");
+  h.bits = in.u8("quantisation bits");
+  if (h.flags & ~kKnownFlags) in.fail("unknown flags " + std::to_string(h.flags));
+  if (h.bits < kMinQuantBits || h.bits > kMaxQuantBits)
+    in.fail("quantisation bits " + std::to_string(h.bits) + " outside [" +
+            std::to_string(kMinQuantBits) + ", " + std::to_string(kMaxQuantBits) + "]");
+  for (int a = 0; a < 3; ++a) h.offset[a] = in.f64("offset");
+  h.step = in.f64("step");
+  if (!h.offset.allFinite() || !std::isfinite(h.step) || !(h.step > 0))
+    in.fail("transform is not finite or its step is not positive");
+  h.vertices = static_cast<std::uint32_t>(in.varint("vertex count", kMaxStreamVertices));
+  h.faces = static_cast<std::uint32_t>(in.varint("face count", kMaxStreamFaces));
+  h.creases = static_cast<std::uint32_t>(in.varint("crease count", 4ull * h.faces));
+  h.corners = static_cast<std::uint32_t>(in.varint("corner count", h.vertices));
+  h.metadata_entries = static_cast<std::uint32_t>(in.varint("metadata entry count", kMaxMetadataEntries));
+  h.raw_size = in.varint("payload size", kMaxStreamBytes);
+  const auto [lo, hi] = payload_bounds(h);
+  if (h.raw_size < lo || h.raw_size > hi)
+    in.fail("payload size " + std::to_string(h.raw_size) + " inconsistent with the counts (expected " +
+            std::to_string(lo) + ".." + std::to_string(hi) + " bytes)");
+
+  const std::uint8_t* payload = in.position();
+  const std::size_t payload_size = in.remaining();
+  if (h.flags & kFlagZstd) {
+    const unsigned long long content = ZSTD_getFrameContentSize(payload, payload_size);
+    if (content == ZSTD_CONTENTSIZE_ERROR || content == ZSTD_CONTENTSIZE_UNKNOWN)
+      in.fail("payload is not a zstd frame with a declared size");
+    if (content != h.raw_size)
+      in.fail("zstd frame size " + std::to_string(content) + " differs from the declared payload size");
+    const std::size_t frame = ZSTD_findFrameCompressedSize(payload, payload_size);
+    if (ZSTD_isError(frame) || frame != payload_size)
+      in.fail("zstd frame does not fill the payload exactly");
+    if (h.raw_size > std::max<std::size_t>(kExpansionFloor, kMaxExpansion * payload_size))
+      in.fail("zstd frame expands beyond the allowed ratio");
+    parts.raw.resize(h.raw_size);
+    const std::size_t n = ZSTD_decompress(parts.raw.data(), parts.raw.size(), payload, payload_size);
+    if (ZSTD_isError(n)) in.fail(std::string("zstd: ") + ZSTD_getErrorName(n));
+    if (n != h.raw_size) in.fail("zstd frame decompressed to the wrong size");
+  } else {
+    if (payload_size != h.raw_size)
+      in.fail("stored payload is " + std::to_string(payload_size) + " bytes, header says " +
+              std::to_string(h.raw_size));
+    parts.raw.assign(payload, payload + payload_size);
+  }
+  return parts;
+}
+
+}  // namespace codec_detail
+
+// ---------------------------------------------------------------------------------------------
+
+std::vector<std::uint8_t> encode(const Mesh& mesh, const CodecParams& params) {
+  validate_for_encoding(mesh, params);
+  Quantization q;
+  try {
+    q = quantization_for(mesh.points, params.quant_bits);
+  } catch (const InputError& e) {
+    throw InputError("encode", e.reason());
+  }
+  const GridPoints grid = quantize(mesh.points, q);
+
+  const auto edges = unique_edges(mesh);
+  std::vector<bool> crease_bits(edges.size());
+  for (auto [a, b] : mesh.creases) {
+    if (a > b) std::swap(a, b);
+    const auto it = std::lower_bound(edges.begin(), edges.end(), std::make_pair(a, b));
+    if (it == edges.end() || *it != std::make_pair(a, b))
+      throw InputError("encode", "crease (" + std::to_string(a) + ", " + std::to_string(b) +
+                                     ") is not an edge of the mesh");
+    crease_bits[it - edges.begin()] = true;
+  }
+  std::vector<int> corners = mesh.corners;
+  std::sort(corners.begin(), corners.end());
+  corners.erase(std::unique(corners.begin(), corners.end()), corners.end());
+
+  Header h;
+  h.bits = static_cast<std::uint8_t>(q.bits);
+  h.offset = q.offset;
+  h.step = q.step;
+  h.vertices = static_cast<std::uint32_t>(mesh.num_vertices());
+  h.faces = static_cast<std::uint32_t>(mesh.faces.size());
+  h.creases = static_cast<std::uint32_t>(std::count(crease_bits.begin(), crease_bits.end(), true));
+  h.corners = static_cast<std::uint32_t>(corners.size());
+  h.metadata_entries = static_cast<std::uint32_t>(params.metadata.size());
+
+  // Smallest of: delta or plain coordinates, compressed or stored. Ties go to the first.
+  std::vector<std::uint8_t> best;
+  for (bool delta : {true, false}) {
+    Header hd = h;
+    hd.flags = delta ? codec_detail::kFlagDeltaCoords : 0;
+    const auto raw = build_payload(mesh, grid, crease_bits, corners, params.metadata, delta);
+    for (int level : {params.zstd_level, 0}) {
+      auto s = codec_detail::join(hd, raw, level);
+      if (best.empty() || s.size() < best.size()) best = std::move(s);
+    }
+  }
+  return best;
+}
+
+DecodedStream decode(const std::uint8_t* data, std::size_t size, const std::string& source) {
+  codec_detail::Parts parts = codec_detail::split(data, size, source);
+  const Header& h = parts.header;
+  Reader in(parts.raw.data(), parts.raw.size(), source, "payload");
+  const int n = static_cast<int>(h.vertices);
+
+  DecodedStream out;
+  out.version = h.version;
+  Mesh& mesh = out.mesh;
+  const std::vector<bool> quads = read_bitset(in, h.faces, "face sizes");
+  mesh.faces.resize(h.faces);
+  std::int64_t prev_first = 0;
+  for (std::uint32_t f = 0; f < h.faces; ++f) {
+    auto& face = mesh.faces[f];
+    face.resize(quads[f] ? 4 : 3);
+    for (std::size_t k = 0; k < face.size(); ++k) {
+      const std::int64_t base = k == 0 ? prev_first : face[0];
+      const std::int64_t v = base + unzigzag(in.varint("face index", 0xFFFFFFFFull));
+      if (v < 0 || v >= n)
+        in.fail("face " + std::to_string(f) + " has vertex index " + std::to_string(v) +
+                " out of range (" + std::to_string(n) + " vertices)");
+      face[k] = static_cast<int>(v);
+      for (std::size_t j = 0; j < k; ++j)
+        if (face[j] == face[k]) in.fail("face " + std::to_string(f) + " repeats a vertex");
+    }
+    prev_first = face[0];
+  }
+
+  const auto edges = unique_edges(mesh);
+  const std::vector<bool> crease_bits = read_bitset(in, edges.size(), "crease flags");
+  for (std::size_t e = 0; e < edges.size(); ++e)
+    if (crease_bits[e]) mesh.creases.push_back(edges[e]);
+  if (mesh.creases.size() != h.creases)
+    in.fail("crease flags mark " + std::to_string(mesh.creases.size()) + " edges, header says " +
+            std::to_string(h.creases));
+
+  std::int64_t corner = -1;
+  for (std::uint32_t c = 0; c < h.corners; ++c) {
+    corner += 1 + static_cast<std::int64_t>(in.varint("corner gap", 0xFFFFFFFFull));
+    if (corner >= n) in.fail("corner index " + std::to_string(corner) + " out of range");
+    mesh.corners.push_back(static_cast<int>(corner));
+  }
+
+  Quantization& q = out.quantization;
+  q.bits = h.bits;
+  q.offset = h.offset;
+  q.step = h.step;
+  const bool delta = h.flags & codec_detail::kFlagDeltaCoords;
+  out.grid.resize(n, 3);
+  for (int a = 0; a < 3; ++a) {
+    std::int64_t prev = 0;
+    for (int i = 0; i < n; ++i) {
+      const std::uint64_t u = in.varint("coordinate", delta ? 2ull * q.max_value() : q.max_value());
+      const std::int64_t v = delta ? prev + unzigzag(u) : static_cast<std::int64_t>(u);
+      if (v < 0 || v > q.max_value())
+        in.fail("vertex " + std::to_string(i) + " coordinate outside the " +
+                std::to_string(q.bits) + "-bit grid");
+      out.grid(i, a) = static_cast<std::int32_t>(v);
+      prev = v;
+    }
+  }
+  mesh.points = dequantize(out.grid, q);
+
+  std::string prev_key;
+  for (std::uint32_t m = 0; m < h.metadata_entries; ++m) {
+    const std::size_t klen = in.varint("metadata key length", kMaxKeyBytes);
+    std::string key(reinterpret_cast<const char*>(in.bytes(klen, "metadata key")), klen);
+    const std::size_t vlen = in.varint("metadata value length", kMaxValueBytes);
+    std::string value(reinterpret_cast<const char*>(in.bytes(vlen, "metadata value")), vlen);
+    if (!valid_key(key)) in.fail("invalid metadata key");
+    if (m > 0 && !(prev_key < key)) in.fail("metadata keys not strictly increasing");
+    prev_key = key;
+    out.metadata.emplace(std::move(key), std::move(value));
+  }
+  if (in.remaining() != 0) in.fail(std::to_string(in.remaining()) + " unexpected trailing bytes");
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Files
+
+void write_stream_file(const std::string& path, const std::vector<std::uint8_t>& bytes) {
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw InputError(path, "cannot create temporary file: " + std::string(std::strerror(errno)));
+  std::size_t done = 0;
+  bool ok = true;
+  while (ok && done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    ok = n > 0;
+    if (ok) done += static_cast<std::size_t>(n);
+  }
+  ok = ok && ::fsync(fd) == 0;
+  ok = (::close(fd) == 0) && ok;
+  if (!ok) {
+    ::unlink(tmp.c_str());
+    throw InputError(path, "writing the stream failed");
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    ::unlink(tmp.c_str());
+    throw InputError(path, "cannot rename the stream into place: " + why);
+  }
+  // Make the rename durable too.
+  const std::string dir = std::filesystem::path(path).parent_path().empty()
+                              ? std::string(".")
+                              : std::filesystem::path(path).parent_path().string();
+  const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dfd >= 0) {
+    ::fsync(dfd);
+    ::close(dfd);
+  }
+}
+
+std::vector<std::uint8_t> read_stream_file(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw InputError(path, "no such file");
+  const auto size = std::filesystem::file_size(path, ec);
+  if (ec) throw InputError(path, "cannot read the file size");
+  if (size > kMaxStreamBytes) throw InputError(path, "file larger than the 256 MiB stream limit");
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw InputError(path, "cannot open");
+  std::vector<std::uint8_t> bytes(size);
+  f.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size));
+  if (static_cast<std::uintmax_t>(f.gcount()) != size) throw InputError(path, "short read");
+  return bytes;
+}
+
+DecodedStream decode_file(const std::string& path) { return decode(read_stream_file(path), path); }
+
+}  // namespace mm

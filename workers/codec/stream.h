@@ -1,0 +1,60 @@
+// The .mmc stream: a control polyhedron (triangles and quads, sharp creases, corners) with
+// quantised positions, entropy coded with zstd and sealed by a CRC-32. docs/stream-format.md
+// describes it byte by byte.
+//
+// Vertex order and face order (with each face's starting vertex) are kept exactly: the
+// watermark lives in the spectrum of this vertex order. Creases are stored as a set over the
+// mesh's edges and corners as a set, so both come back sorted and without duplicates.
+#pragma once
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "codec/quantize.h"
+#include "meshio/mesh.h"
+
+namespace mm {
+
+struct CodecParams {
+  int quant_bits = 12;                        // [kMinQuantBits, kMaxQuantBits]
+  int zstd_level = 19;
+  // Small key-value strings (asset id, copy id...). Keys: 1..64 bytes of [A-Za-z0-9_.-];
+  // values: up to 1024 bytes; at most 32 entries. Never put secrets here.
+  std::map<std::string, std::string> metadata;
+};
+
+struct DecodedStream {
+  Mesh mesh;                 // de-normalised positions = dequantize(grid, quantization)
+  GridPoints grid;           // the quantised values, exactly as stored
+  Quantization quantization;
+  std::map<std::string, std::string> metadata;
+  int version = 0;
+};
+
+// Hard limits the decoder enforces before allocating anything.
+constexpr std::size_t kMaxStreamBytes = 256u << 20;    // whole stream and decompressed payload
+constexpr std::uint32_t kMaxStreamVertices = 1u << 24;
+constexpr std::uint32_t kMaxStreamFaces = 1u << 25;
+
+// Encodes a mesh whose faces are all triangles or quads with distinct in-range vertices, whose
+// creases are edges of its faces and whose corners are vertex indices. Throws InputError
+// ("encode", reason) otherwise, and for bad parameters or metadata.
+std::vector<std::uint8_t> encode(const Mesh& mesh, const CodecParams& params = {});
+
+// Decodes and validates a stream. Any defect (wrong magic or version, truncation, checksum
+// mismatch, sizes beyond the limits or beyond the bytes present, bad indices, creases that are
+// not edges, trailing bytes...) throws InputError(source, reason); nothing is allocated beyond
+// what the present bytes justify.
+DecodedStream decode(const std::uint8_t* data, std::size_t size, const std::string& source);
+inline DecodedStream decode(const std::vector<std::uint8_t>& bytes, const std::string& source) {
+  return decode(bytes.data(), bytes.size(), source);
+}
+
+// Files: written to a temporary file in the same folder, fsynced and renamed into place;
+// read with a size check against kMaxStreamBytes first. Both throw InputError(path, reason).
+void write_stream_file(const std::string& path, const std::vector<std::uint8_t>& bytes);
+std::vector<std::uint8_t> read_stream_file(const std::string& path);
+DecodedStream decode_file(const std::string& path);
+
+}  // namespace mm

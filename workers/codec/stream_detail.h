@@ -1,0 +1,50 @@
+// The stream's outer layer (header, payload compression, checksum) on its own. The codec uses
+// it; tests use it to build hostile streams whose checksum is valid, so the payload checks
+// behind the checksum are exercised too.
+#pragma once
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace mm::codec_detail {
+
+constexpr std::uint8_t kMagic[4] = {'M', 'M', 'C', 'S'};
+constexpr std::uint8_t kVersion = 1;
+constexpr std::uint8_t kFlagZstd = 1;         // payload is one zstd frame (else stored as is)
+constexpr std::uint8_t kFlagDeltaCoords = 2;  // coordinates are deltas from the previous vertex
+constexpr std::uint8_t kKnownFlags = kFlagZstd | kFlagDeltaCoords;
+constexpr std::size_t kFixedHeaderBytes = 39;  // magic .. step
+constexpr std::size_t kChecksumBytes = 4;
+// A real payload never compresses better than this; a frame that claims more is refused
+// before its output buffer is allocated, so memory stays linear in the stream size.
+constexpr std::size_t kMaxExpansion = 1024;
+constexpr std::size_t kExpansionFloor = 1u << 16;
+
+struct Header {
+  std::uint8_t version = kVersion;
+  std::uint8_t flags = 0;
+  std::uint8_t bits = 12;
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+  double step = 1.0;
+  std::uint32_t vertices = 0, faces = 0, creases = 0, corners = 0, metadata_entries = 0;
+  std::uint64_t raw_size = 0;  // payload bytes after decompression
+};
+
+struct Parts {
+  Header header;
+  std::vector<std::uint8_t> raw;  // decompressed payload
+};
+
+// CRC-32 (zlib polynomial) of the bytes.
+std::uint32_t checksum(const std::uint8_t* data, std::size_t size);
+
+// Builds a stream from a header and a raw payload; header.raw_size and the zstd flag are set
+// here (zstd_level <= 0 stores the payload uncompressed). No validation of the contents.
+std::vector<std::uint8_t> join(Header header, const std::vector<std::uint8_t>& raw, int zstd_level);
+
+// Checks magic, version, checksum, flags, quantisation bits, transform, counts and their
+// consistency with the payload size, then decompresses. Throws InputError(source, reason).
+Parts split(const std::uint8_t* data, std::size_t size, const std::string& source);
+
+}  // namespace mm::codec_detail
