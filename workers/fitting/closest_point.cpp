@@ -40,8 +40,18 @@ Eigen::Vector3d barycentric(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
 
 struct TriangleIndex::Impl {
   std::vector<Tri> tris;
-  std::vector<int> id;  // tree triangle -> caller's triangle index
+  std::vector<int> id;       // tree triangle -> caller's triangle index
+  std::vector<int> tree_of;  // caller's triangle index -> tree triangle (-1: degenerate)
   TriTree tree;
+  TriangleHit hit(const Eigen::Vector3d& q, const K::Point_3& pt, TriIt it) const {
+    const Tri& tri = *it;
+    TriangleHit h;
+    h.triangle = id[static_cast<size_t>(it - tris.begin())];
+    h.point = ei(pt);
+    h.barycentric = barycentric(h.point, ei(tri[0]), ei(tri[1]), ei(tri[2]));
+    h.distance = (h.point - q).norm();
+    return h;
+  }
 };
 
 TriangleIndex::TriangleIndex(const Points& points, std::vector<std::array<int, 3>> triangles)
@@ -53,6 +63,8 @@ TriangleIndex::TriangleIndex(const Points& points, std::vector<std::array<int, 3
     impl_->tris.push_back(tri);
     impl_->id.push_back(static_cast<int>(t));
   }
+  impl_->tree_of.assign(triangles_.size(), -1);
+  for (size_t k = 0; k < impl_->id.size(); ++k) impl_->tree_of[impl_->id[k]] = static_cast<int>(k);
   impl_->tree.rebuild(impl_->tris.begin(), impl_->tris.end());
   if (!impl_->tris.empty()) impl_->tree.accelerate_distance_queries();
 }
@@ -61,13 +73,16 @@ bool TriangleIndex::empty() const { return impl_->tris.empty(); }
 
 TriangleHit TriangleIndex::closest(const Eigen::Vector3d& q) const {
   auto [pt, it] = impl_->tree.closest_point_and_primitive(cg(q));
-  const Tri& tri = *it;
-  TriangleHit hit;
-  hit.triangle = impl_->id[static_cast<size_t>(it - impl_->tris.begin())];
-  hit.point = ei(pt);
-  hit.barycentric = barycentric(hit.point, ei(tri[0]), ei(tri[1]), ei(tri[2]));
-  hit.distance = (hit.point - q).norm();
-  return hit;
+  return impl_->hit(q, pt, it);
+}
+
+TriangleHit TriangleIndex::closest(const Eigen::Vector3d& q, const TriangleHint& hint) const {
+  if (hint.triangle < 0 || hint.triangle >= static_cast<int>(impl_->tree_of.size()) ||
+      impl_->tree_of[hint.triangle] < 0)
+    return closest(q);
+  TriIt hint_it = impl_->tris.begin() + impl_->tree_of[hint.triangle];
+  auto [pt, it] = impl_->tree.closest_point_and_primitive(cg(q), std::make_pair(cg(hint.point), hint_it));
+  return impl_->hit(q, pt, it);
 }
 
 struct SegmentIndex::Impl {

@@ -18,6 +18,12 @@ struct TriangleHit {
   double distance = 0;
 };
 
+// A previous answer near the query, to start from (much faster when queries move little).
+struct TriangleHint {
+  int triangle = -1;
+  Eigen::Vector3d point;  // must lie on that triangle (current positions)
+};
+
 struct SegmentHit {
   int segment = -1;
   Eigen::Vector3d point;
@@ -34,6 +40,7 @@ class TriangleIndex {
   TriangleIndex& operator=(const TriangleIndex&) = delete;
   bool empty() const;
   TriangleHit closest(const Eigen::Vector3d& q) const;
+  TriangleHit closest(const Eigen::Vector3d& q, const TriangleHint& hint) const;
   const std::array<int, 3>& triangle(int t) const { return triangles_[t]; }
 
  private:

@@ -130,19 +130,42 @@ struct Correspondences {
   }
 };
 
+// Previous answers, used as hints for the next round's queries (positions move little).
+struct Hints {
+  std::vector<TriangleHit> on_surface;  // per target surface sample: hit on the refined surface
+  std::vector<TriangleHit> on_target;   // per refined vertex: hit on the target
+};
+
 Correspondences correspond(const Points& R, const Mesh& refined,
+                           const std::vector<std::array<int, 3>>& refined_tris,
                            const std::vector<std::pair<int, int>>& refined_creases,
                            const TargetSamples& samples, const TriangleIndex& target_tris,
                            const SegmentIndex& target_creases, const FitOptions& o,
-                           bool with_creases) {
+                           bool with_creases, Hints* hints) {
   Correspondences c;
-  TriangleIndex surf(R, triangle_list(refined));
+  TriangleIndex surf(R, refined_tris);
+  if (hints) {
+    hints->on_surface.resize(samples.surface.size());
+    hints->on_target.resize(static_cast<size_t>(R.rows()));
+  }
   SegmentIndex crease(R, refined_creases);
   std::vector<char> on_crease(R.rows(), 0);
   for (auto [a, b] : refined_creases) on_crease[a] = on_crease[b] = 1;
   if (!surf.empty())
-    for (const auto& p : samples.surface) {
-      auto h = surf.closest(p);
+    for (size_t k = 0; k < samples.surface.size(); ++k) {
+      const auto& p = samples.surface[k];
+      TriangleHit h;
+      if (hints && hints->on_surface[k].triangle >= 0) {
+        const auto& prev = hints->on_surface[k];
+        const auto& t = refined_tris[prev.triangle];
+        TriangleHint hint{prev.triangle, prev.barycentric[0] * R.row(t[0]).transpose() +
+                                             prev.barycentric[1] * R.row(t[1]).transpose() +
+                                             prev.barycentric[2] * R.row(t[2]).transpose()};
+        h = surf.closest(p, hint);
+      } else {
+        h = surf.closest(p);
+      }
+      if (hints) hints->on_surface[k] = h;
       const auto& t = surf.triangle(h.triangle);
       c.add({{t[0], h.barycentric[0]}, {t[1], h.barycentric[1]}, {t[2], h.barycentric[2]}}, p, 1.0,
             h.distance, true);
@@ -153,7 +176,13 @@ Correspondences correspond(const Points& R, const Mesh& refined,
         auto h = target_creases.closest(R.row(v).transpose());
         c.add({{static_cast<int>(v), 1.0}}, h.point, o.crease_weight, h.distance, false);
       }
-      auto h = target_tris.closest(R.row(v).transpose());
+      TriangleHit h;
+      if (hints && hints->on_target[v].triangle >= 0)
+        h = target_tris.closest(R.row(v).transpose(),
+                                TriangleHint{hints->on_target[v].triangle, hints->on_target[v].point});
+      else
+        h = target_tris.closest(R.row(v).transpose());
+      if (hints) hints->on_target[v] = h;
       c.add({{static_cast<int>(v), 1.0}}, h.point, 1.0, h.distance, true);
     }
   if (with_creases && !crease.empty())
@@ -194,10 +223,22 @@ FitResult fit_control_points(const Mesh& control, const Mesh& target, const Feat
     throw std::invalid_argument("control mesh is empty");
   const auto op = build_subdivision(control, o.levels);
   const auto refined_creases = crease_edges(op.refined);
+  const auto refined_tris = triangle_list(op.refined);
   const auto target_tris_list = triangle_list(target);
   const TriangleIndex target_tris(target.points, target_tris_list);
   const SegmentIndex target_creases(target.points, features.sharp_edges);
   const auto samples = sample_target(target, target_tris_list, features, o);
+  // The iterations see a capped, evenly strided subset of the target's vertices.
+  TargetSamples iteration_samples = samples;
+  const int nt = target.num_vertices();
+  if (nt > o.max_vertex_samples) {
+    iteration_samples.surface.clear();
+    for (long long k = 0; k < o.max_vertex_samples; ++k)
+      iteration_samples.surface.push_back(samples.surface[static_cast<size_t>(k * nt / o.max_vertex_samples)]);
+    iteration_samples.surface.insert(iteration_samples.surface.end(), samples.surface.begin() + nt,
+                                     samples.surface.end());
+  }
+  Hints hints;
   const bool with_creases = !target_creases.empty();
 
   std::set<std::pair<int, int>> control_creases(control.creases.begin(), control.creases.end());
@@ -209,8 +250,8 @@ FitResult fit_control_points(const Mesh& control, const Mesh& target, const Feat
   Eigen::MatrixXd X = control.points;
   for (int it = 0; it < o.iterations; ++it) {
     Points R = op.S * X;
-    auto c = correspond(R, op.refined, refined_creases, samples, target_tris, target_creases, o,
-                        with_creases);
+    auto c = correspond(R, op.refined, refined_tris, refined_creases, iteration_samples, target_tris,
+                        target_creases, o, with_creases, &hints);
     SpMat B(c.rows, op.S.rows());
     B.setFromTriplets(c.B.begin(), c.B.end());
     SpMat A = B * op.S;
@@ -237,7 +278,8 @@ FitResult fit_control_points(const Mesh& control, const Mesh& target, const Feat
   out.control = control;
   out.control.points = X;
   Points R = op.S * X;
-  auto c = correspond(R, op.refined, refined_creases, samples, target_tris, target_creases, o, false);
+  auto c = correspond(R, op.refined, refined_tris, refined_creases, samples, target_tris,
+                      target_creases, o, false, nullptr);
   out.stats = stats_of(c.surface_dist, diagonal_of(target.points));
   // The first rows are the target vertices (sample_target puts them first).
   if (c.surface_dist.size() >= static_cast<size_t>(target.num_vertices()))
@@ -267,7 +309,8 @@ FitStats measure_fit(const Mesh& control, int levels, const Mesh& target) {
   FitOptions o;
   Features no_features;
   auto samples = sample_target(target, tris, no_features, o);
-  auto c = correspond(R, op.refined, {}, samples, target_tris, none, o, false);
+  auto c = correspond(R, op.refined, triangle_list(op.refined), {}, samples, target_tris, none, o,
+                      false, nullptr);
   return stats_of(c.surface_dist, diagonal_of(target.points));
 }
 
