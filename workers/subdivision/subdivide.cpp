@@ -207,21 +207,20 @@ class RowBuilder {
       vals_[s] += w;
     }
   }
-  // Appends the row (sorted columns, zero weights dropped) to the CSR arrays and resets.
-  void flush(std::vector<int>& inner, std::vector<double>& values, std::vector<int>& outer) {
+  // Appends the row (sorted columns, zero weights dropped) to row `r` of a compressed row-major
+  // matrix being filled in order, and resets.
+  void flush(SparseOperator& M, int r) {
     order_.resize(cols_.size());
     for (size_t i = 0; i < cols_.size(); ++i) order_[i] = static_cast<int>(i);
     std::sort(order_.begin(), order_.end(), [&](int x, int y) { return cols_[x] < cols_[y]; });
+    auto& data = M.data();
     for (int i : order_) {
-      if (vals_[i] != 0.0) {
-        inner.push_back(cols_[i]);
-        values.push_back(vals_[i]);
-      }
+      if (vals_[i] != 0.0) data.append(vals_[i], cols_[i]);
       slot_[cols_[i]] = -1;
     }
     cols_.clear();
     vals_.clear();
-    outer.push_back(static_cast<int>(inner.size()));
+    M.outerIndexPtr()[r + 1] = static_cast<int>(data.size());
   }
 
  private:
@@ -264,11 +263,11 @@ StepResult refine(const Level& L) {
   auto epoint = [&](int e) { return nv + nfp + e; };
   auto sharp = [&](int e) { return L.ecrease[e] || a.efaces[e][1] < 0; };
 
-  std::vector<int> outer{0}, inner;
-  std::vector<double> values;
-  outer.reserve(nchild + 1);
-  inner.reserve(static_cast<size_t>(nchild) * 8);
-  values.reserve(static_cast<size_t>(nchild) * 8);
+  StepResult r;
+  SparseOperator& M = r.M;
+  M.resize(nchild, nv);
+  M.data().reserve(static_cast<Eigen::Index>(nchild) * 9);
+  int crow = 0;
   RowBuilder row(nv);
 
   auto add_face_point = [&](int f, double w) {  // w * centroid of face f
@@ -316,13 +315,13 @@ StepResult refine(const Level& L) {
           if (L.fsize(*f) != 3) add_face_point(*f, alpha / 4.0);
       }
     }
-    row.flush(inner, values, outer);
+    row.flush(M, crow++);
   }
   // Face points.
   for (int f = 0; f < nf; ++f)
     if (fpoint[f] >= 0) {
       add_face_point(f, 1.0);
-      row.flush(inner, values, outer);
+      row.flush(M, crow++);
     }
   // Edge points: 1/4 per endpoint plus each face's wing (triangle: 1/16 per endpoint and 1/8
   // opposite, i.e. Loop; other faces: 1/4 of the face point, i.e. Catmull-Clark).
@@ -345,12 +344,9 @@ StepResult refine(const Level& L) {
         }
       }
     }
-    row.flush(inner, values, outer);
+    row.flush(M, crow++);
   }
 
-  StepResult r;
-  r.M = Eigen::Map<const SparseOperator>(nchild, nv, static_cast<Eigen::Index>(inner.size()),
-                                         outer.data(), inner.data(), values.data());
 
   // Child topology, numbered as OpenSubdiv: faces by parent face; edges interior to faces first
   // (by face), then the two halves of each parent edge.
@@ -427,6 +423,19 @@ StepResult refine(const Level& L) {
   return r;
 }
 
+// A * B row by row with a dense accumulator (Gustavson); several times faster here than Eigen's
+// generic sparse product, which dominated building the operator.
+SparseOperator compose(const SparseOperator& A, const SparseOperator& B) {
+  SparseOperator C(A.rows(), B.cols());
+  RowBuilder row(static_cast<int>(B.cols()));
+  for (int r = 0; r < A.rows(); ++r) {
+    for (SparseOperator::InnerIterator a(A, r); a; ++a)
+      for (SparseOperator::InnerIterator b(B, a.col()); b; ++b) row.add(static_cast<int>(b.col()), a.value() * b.value());
+    row.flush(C, r);
+  }
+  return C;
+}
+
 Mesh to_mesh(const Level& L, const std::vector<int>& tagged_corners) {
   Mesh m;
   m.faces.resize(L.nf());
@@ -440,7 +449,14 @@ Mesh to_mesh(const Level& L, const std::vector<int>& tagged_corners) {
 
 }  // namespace
 
-SubdivisionOperator build_subdivision(const Mesh& control, int levels) {
+namespace {
+
+struct Steps {
+  std::vector<SparseOperator> steps;
+  Mesh refined;  // topology only
+};
+
+Steps build_steps(const Mesh& control, int levels) {
   if (levels < 0 || levels > kMaxSubdivisionLevels)
     throw std::invalid_argument("subdivision levels must be in [0, " +
                                 std::to_string(kMaxSubdivisionLevels) + "], got " +
@@ -453,10 +469,11 @@ SubdivisionOperator build_subdivision(const Mesh& control, int levels) {
     for (int f = 0; f < L.nf(); ++f) (L.fsize(f) == 3 ? t : q)++, c += L.fsize(f);
     for (int k = 0; k < levels; ++k) {
       const long long corners_nontri = c - 3 * t;
-      const long long nv = v + q + e;
-      const long long ne2 = 2 * e + 3 * t + corners_nontri;
-      const long long nt = 4 * t, nq = corners_nontri;
-      v = nv, e = ne2, t = nt, q = nq, c = 3 * nt + 4 * nq;
+      v = v + q + e;
+      e = 2 * e + c;
+      t = 4 * t;
+      q = corners_nontri;
+      c = 3 * t + 4 * q;
       if (v > kMaxRefinedVertices)
         throw std::invalid_argument("subdivision to level " + std::to_string(levels) + " would make " +
                                     "more than " + std::to_string(kMaxRefinedVertices) + " vertices");
@@ -470,19 +487,34 @@ SubdivisionOperator build_subdivision(const Mesh& control, int levels) {
   std::sort(corners.begin(), corners.end());
   corners.erase(std::unique(corners.begin(), corners.end()), corners.end());
 
-  SubdivisionOperator op;
-  const int n = control.num_vertices();
-  SparseOperator S(n, n);
-  S.setIdentity();
+  Steps out;
   for (int k = 0; k < levels; ++k) {
     StepResult r = refine(L);
-    S = SparseOperator(r.M * S);
-    op.steps.push_back(std::move(r.M));
+    out.steps.push_back(std::move(r.M));
     L = std::move(r.child);
   }
-  op.S = std::move(S);
-  op.refined = to_mesh(L, corners);
-  op.refined.points = op.S * control.points;
+  out.refined = to_mesh(L, corners);
+  return out;
+}
+
+Points apply_steps(const std::vector<SparseOperator>& steps, const Points& p0) {
+  Points p = p0;
+  for (const auto& M : steps) p = M * p;
+  return p;
+}
+
+}  // namespace
+
+SubdivisionOperator build_subdivision(const Mesh& control, int levels) {
+  Steps st = build_steps(control, levels);
+  SubdivisionOperator op;
+  const int n = control.num_vertices();
+  op.S.resize(n, n);
+  op.S.setIdentity();
+  for (size_t k = 0; k < st.steps.size(); ++k) op.S = k == 0 ? st.steps[0] : compose(st.steps[k], op.S);
+  op.refined = std::move(st.refined);
+  op.refined.points = apply_steps(st.steps, control.points);
+  op.steps = std::move(st.steps);
   return op;
 }
 
@@ -490,11 +522,14 @@ Points apply_subdivision(const SubdivisionOperator& op, const Points& control_po
   if (control_points.rows() != op.S.cols())
     throw std::invalid_argument("apply_subdivision: " + std::to_string(control_points.rows()) +
                                 " control points for an operator on " + std::to_string(op.S.cols()));
-  Points p = control_points;
-  for (const auto& M : op.steps) p = M * p;
-  return p;
+  return apply_steps(op.steps, control_points);
 }
 
-Mesh subdivide(const Mesh& control, int levels) { return build_subdivision(control, levels).refined; }
+Mesh subdivide(const Mesh& control, int levels) {
+  // No composed operator: refining the points level by level is all decompression needs.
+  Steps st = build_steps(control, levels);
+  st.refined.points = apply_steps(st.steps, control.points);
+  return std::move(st.refined);
+}
 
 }  // namespace mm
