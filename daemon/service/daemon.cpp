@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cstdlib>
+#include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <spdlog/sinks/basic_file_sink.h>
@@ -32,6 +33,28 @@ std::string host_prefix() {
   char host[256] = {0};
   ::gethostname(host, sizeof host - 1);
   return std::string(host) + ":" + std::to_string(::getpid());
+}
+
+// Temporary files write_mesh leaves when a process dies mid-write ("." name ".tmp." 6 chars) in
+// <output>/<customer>/. Only this daemon writes there, and none of its workers is running yet.
+int remove_stale_output_temps(const std::string& output_dir) {
+  namespace fs = std::filesystem;
+  int n = 0;
+  std::error_code ec;
+  for (fs::directory_iterator d(output_dir, ec), end; !ec && d != end; d.increment(ec)) {
+    if (!d->is_directory() || d->is_symlink()) continue;
+    std::error_code ec2;
+    for (fs::directory_iterator f(d->path(), ec2), fend; !ec2 && f != fend; f.increment(ec2)) {
+      std::string name = f->path().filename().string();
+      auto pos = name.rfind(".tmp.");
+      if (name.size() > 1 && name[0] == '.' && pos != std::string::npos && pos + 11 == name.size() &&
+          f->is_regular_file() && !f->is_symlink()) {
+        std::error_code ec3;
+        if (fs::remove(f->path(), ec3)) ++n;
+      }
+    }
+  }
+  return n;
 }
 
 }  // namespace
@@ -197,6 +220,8 @@ int Daemon::run() {
   auto factory = [this] { return open_store(*config()); };
   pool_ = std::make_unique<WorkerPool>(cfg->workers, factory, default_handlers(), cfg_fn, host_prefix());
   int reaped = store_->reap_expired_leases();
+  if (int stale = remove_stale_output_temps(cfg->output_dir))
+    spdlog::info("removed {} half-written temporary output file(s) left by a previous crash", stale);
   spdlog::info("meshmarkd started: {} workers, drop {}, output {}, inotify {}, schema v{}{}", cfg->workers,
                cfg->drop_dir, cfg->output_dir, watcher_->inotify_active() ? "on" : "off", store_->schema_version(),
                reaped ? ", " + std::to_string(reaped) + " expired leases reaped" : "");

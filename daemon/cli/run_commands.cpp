@@ -1,0 +1,139 @@
+// submit protect|detect (enqueue files as jobs) and run --until-empty (a cron-style batch without
+// a resident daemon). See docs/daemon.md.
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "keys/keys.h"
+#include "service/config.h"
+#include "service/daemon.h"
+#include "service/handlers.h"
+#include "store/home.h"
+
+namespace mm::cli {
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+struct SubmitOptions {
+  std::string home, config, customer, format;
+  std::vector<std::string> files;
+  int max_attempts = 5;
+  bool json = false;
+};
+
+// --config gives home and max_attempts; otherwise --home (or $MESHMARK_HOME).
+std::unique_ptr<store::Store> open_for_submit(SubmitOptions& o) {
+  if (!o.config.empty()) {
+    auto cfg = service::load_config(o.config, false);
+    o.max_attempts = cfg.max_attempts;
+    return service::open_store(cfg);
+  }
+  return store::open_home(store::resolve_home(o.home), false);
+}
+
+void submit(SubmitOptions& o, bool protect) {
+  try {
+    auto st = open_for_submit(o);
+    if (protect && !st->find_customer(o.customer))
+      throw CommandFailed(1, "unknown customer \"" + o.customer + "\" (add it with: meshmark customer add " +
+                                 o.customer + ")");
+    json out = json::array();
+    for (const auto& f : o.files) {
+      std::string name = fs::path(f).filename().string();
+      auto r = protect ? service::submit_protect(*st, o.customer, f, name, o.max_attempts, "cli", o.format)
+                       : service::submit_detect(*st, f, name, o.max_attempts, "cli");
+      if (o.json)
+        out.push_back({{"file", f}, {"job_id", r.job.id}, {"kind", r.job.kind}, {"created", r.created},
+                       {"state", store::to_string(r.job.state)}});
+      else
+        std::cout << "job " << r.job.id << " " << r.job.kind << " " << f
+                  << (r.created ? "" : " (already submitted, state " + std::string(store::to_string(r.job.state)) + ")")
+                  << "\n";
+    }
+    if (o.json) std::cout << out.dump(2) << "\n";
+  } catch (const service::ConfigError& e) {
+    throw CommandFailed(78, e.what());
+  } catch (const keys::KeyError& e) {
+    throw CommandFailed(1, e.what());
+  } catch (const store::StoreError& e) {
+    throw CommandFailed(1, e.what());
+  } catch (const store::BlobError& e) {
+    throw CommandFailed(1, e.what());
+  }
+}
+
+}  // namespace
+
+void add_run_commands(CLI::App& app) {
+  auto* grp = app.add_subcommand("submit", "Enqueue files as protect or detect jobs");
+  grp->require_subcommand(1);
+  for (bool protect : {true, false}) {
+    auto o = std::make_shared<SubmitOptions>();
+    auto* cmd = grp->add_subcommand(protect ? "protect" : "detect",
+                                    protect ? "Enqueue meshes to watermark for a customer"
+                                            : "Enqueue suspect meshes to trace");
+    cmd->add_option("--home", o->home, "meshmark home folder (default: $MESHMARK_HOME or ./meshmark-home)");
+    cmd->add_option("--config", o->config, "take home and max_attempts from this meshmarkd configuration");
+    cmd->add_flag("--json", o->json, "print JSON for scripts");
+    if (protect) {
+      cmd->add_option("--customer", o->customer, "customer name")->required();
+      cmd->add_option("--format", o->format, "output format (default: output_format of the config at run time)")
+          ->check(CLI::IsMember({"stl", "obj", "off", "ply"}));
+    }
+    cmd->add_option("files", o->files, "mesh files (STL, OBJ, OFF, PLY)")->required()->check(CLI::ExistingFile);
+    cmd->callback([o, protect] { submit(*o, protect); });
+  }
+
+  auto* run = app.add_subcommand("run", "Process queued jobs without a resident daemon");
+  auto cfg_path = std::make_shared<std::string>();
+  auto until_empty = std::make_shared<bool>(false);
+  auto no_drops = std::make_shared<bool>(false);
+  auto as_json = std::make_shared<bool>(false);
+  auto workers = std::make_shared<int>(0);
+  run->add_option("-c,--config", *cfg_path, "meshmarkd configuration (JSON)")->required();
+  run->add_flag("--until-empty", *until_empty, "process every claimable job, then exit (required)")->required();
+  run->add_flag("--no-drops", *no_drops, "do not scan the drop folders first");
+  run->add_option("--workers", *workers, "worker threads (default: the config's workers)")->check(CLI::Range(1, 64));
+  run->add_flag("--json", *as_json, "print the summary as JSON");
+  run->callback([=] {
+    service::Config cfg;
+    try {
+      cfg = service::load_config(*cfg_path);
+    } catch (const service::ConfigError& e) {
+      throw CommandFailed(78, e.what());
+    }
+    if (*workers > 0) cfg.workers = *workers;
+    if (*as_json) cfg.log_level = cfg.log_level == "info" || cfg.log_level == "debug" || cfg.log_level == "trace"
+                                      ? "warn" : cfg.log_level;  // keep stdout clean for scripts
+    service::setup_logging(cfg);
+    try {
+      service::Daemon d(cfg);
+      auto s = d.run_until_empty(!*no_drops, !*as_json);
+      json j{{"submitted_from_drops", s.submitted_from_drops},
+             {"completed", s.pool.completed},
+             {"discarded", s.pool.discarded},
+             {"failed_will_retry", s.pool.failed},
+             {"queue", {{"available", s.counts.available}, {"running", s.counts.running},
+                        {"retryable", s.counts.retryable}, {"completed", s.counts.completed},
+                        {"discarded", s.counts.discarded}, {"cancelled", s.counts.cancelled}}}};
+      if (*as_json)
+        std::cout << j.dump(2) << "\n";
+      else
+        std::cout << "run: " << s.submitted_from_drops << " dropped file(s) submitted; " << s.pool.completed
+                  << " completed, " << s.pool.discarded << " discarded, " << s.pool.failed
+                  << " failed (will retry); queue now " << s.counts.available << " available, "
+                  << s.counts.retryable << " retryable, " << s.counts.running << " running\n";
+      if (s.pool.discarded > 0 || s.pool.failed > 0) throw CommandFailed(4, "some jobs did not complete (see meshmark jobs list)");
+    } catch (const keys::KeyError& e) {
+      throw CommandFailed(1, e.what());
+    } catch (const store::StoreError& e) {
+      throw CommandFailed(1, e.what());
+    }
+  });
+}
+
+}  // namespace mm::cli

@@ -1,0 +1,103 @@
+// Config validation: every problem is reported with its key, defaults fill the rest.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "service/config.h"
+
+namespace mm::service {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ConfigTest : ::testing::Test {
+  void SetUp() override {
+    dir = fs::temp_directory_path() / ("mm-config-" + std::to_string(::getpid()) + "-" +
+                                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir);
+    for (const char* d : {"home", "drop", "out"}) fs::create_directories(dir / d);
+  }
+  void TearDown() override { fs::remove_all(dir); }
+  std::string expect_error(const std::string& text, bool check_folders = true) {
+    try {
+      parse_config(text, "test.json", dir.string(), check_folders);
+    } catch (const ConfigError& e) {
+      return e.what();
+    }
+    ADD_FAILURE() << "no error for " << text;
+    return "";
+  }
+  fs::path dir;
+  const std::string base = R"("home": "home", "drop_dir": "drop", "output_dir": "out")";
+};
+
+TEST_F(ConfigTest, MinimalConfigGetsDefaultsAndResolvesRelativePaths) {
+  Config c = parse_config("{" + base + "}", "test.json", dir.string(), true);
+  EXPECT_EQ(c.home, (dir / "home").string());
+  EXPECT_EQ(c.drop_dir, (dir / "drop").string());
+  EXPECT_EQ(c.workers, 2);
+  EXPECT_EQ(c.p_threshold, 1e-6);
+  EXPECT_EQ(c.watermark.message_bits, 32);
+  EXPECT_EQ(c.master_key_path(), (dir / "home" / "master.key").string());
+}
+
+TEST_F(ConfigTest, FullConfigParses) {
+  Config c = parse_config("{" + base + R"(, "workers": 4, "lease_seconds": 60, "heartbeat_seconds": 10,
+      "max_attempts": 3, "poll_interval_ms": 250, "settle_ms": 500, "use_inotify": false,
+      "output_format": "ply", "shutdown_grace_seconds": 5, "log_level": "debug",
+      "watermark": {"method": "multiplicative", "strength": 0.02, "threshold": 0.1, "message_bits": 48,
+                    "max_vertices": 3000},
+      "detect": {"p_threshold": 1e-9, "max_candidates": 5}})",
+                          "test.json", dir.string(), true);
+  EXPECT_EQ(c.workers, 4);
+  EXPECT_EQ(c.watermark.params.method, Method::Multiplicative);
+  EXPECT_EQ(c.watermark.message_bits, 48);
+  EXPECT_EQ(c.max_vertices, 3000);
+  EXPECT_EQ(c.p_threshold, 1e-9);
+  EXPECT_FALSE(c.use_inotify);
+  EXPECT_EQ(c.output_format, "ply");
+}
+
+TEST_F(ConfigTest, ReportsEveryProblemWithItsKey) {
+  std::string e = expect_error(R"({"home": "home", "drop_dir": 5, "wokers": 2, "workers": "two",
+      "watermark": {"strength": 2, "colour": "red"}, "detect": {"p_threshold": 0.5}, "log_level": "loud"})");
+  for (const char* s : {"test.json", "drop_dir: must be a string", "output_dir: missing", "wokers: unknown key",
+                        "workers: must be an integer", "watermark.strength: must be in",
+                        "watermark.colour: unknown key", "detect.p_threshold: must be in", "log_level: must be one of"})
+    EXPECT_NE(e.find(s), std::string::npos) << s << "\n" << e;
+}
+
+TEST_F(ConfigTest, MissingFoldersAndBadCombinations) {
+  std::string e = expect_error(R"({"home": "nohome", "drop_dir": "drop", "output_dir": "drop/out"})");
+  EXPECT_NE(e.find("home: folder"), std::string::npos) << e;
+  EXPECT_NE(e.find("output_dir: must not lie inside drop_dir"), std::string::npos) << e;
+  e = expect_error("{" + base + R"(, "lease_seconds": 10, "heartbeat_seconds": 6})");
+  EXPECT_NE(e.find("heartbeat_seconds: must be at most half"), std::string::npos) << e;
+  // Tools that only read settings do not need the folders.
+  EXPECT_NO_THROW(parse_config(R"({"home": "nohome", "drop_dir": "d", "output_dir": "o"})", "t", dir.string(), false));
+}
+
+TEST_F(ConfigTest, NotJsonOrNotAnObject) {
+  EXPECT_NE(expect_error("{ home: 1").find("not valid JSON"), std::string::npos);
+  EXPECT_NE(expect_error("[1, 2]").find("must be a JSON object"), std::string::npos);
+  EXPECT_THROW(load_config((dir / "absent.json").string()), ConfigError);
+}
+
+TEST_F(ConfigTest, ChangesListOldAndNewValues) {
+  Config a = parse_config("{" + base + "}", "t", dir.string(), true);
+  Config b = parse_config("{" + base + R"(, "log_level": "debug", "workers": 3})", "t", dir.string(), true);
+  auto ch = config_changes(a, b);
+  ASSERT_EQ(ch.size(), 2u);
+  EXPECT_EQ(ch[0], "log_level: info -> debug");
+  EXPECT_EQ(ch[1], "workers: 2 -> 3");
+  EXPECT_FALSE(needs_restart(ch[0]));
+  EXPECT_TRUE(needs_restart(ch[1]));
+}
+
+TEST(ConfigExample, ShippedExampleIsValid) {
+  Config c = load_config(std::string(MESHMARK_SOURCE_DIR) + "/config/meshmark.example.json", false);
+  EXPECT_GE(c.workers, 1);
+}
+
+}  // namespace
+}  // namespace mm::service

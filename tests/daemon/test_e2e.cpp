@@ -1,0 +1,391 @@
+// End to end: the real meshmarkd process on a temporary folder. Protect the shared CAD meshes for
+// two customers through the drop folders, trace leaked copies, survive kill -9 mid-batch with
+// every job done exactly once, drain on SIGTERM, reload on SIGHUP, and batch with
+// `meshmark run --until-empty`.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <set>
+#include <thread>
+
+#include "common/shared_meshes.h"
+#include "meshio/read_mesh.h"
+#include "store/home.h"
+#include "store/store.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+const std::vector<std::string> kMeshes = {"fandisk_quads.off", "chamfer-cube.off", "abc7.stl", "abc9.stl"};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  return std::string((std::istreambuf_iterator<char>(in)), {});
+}
+
+bool wait_for(const std::function<bool()>& done, std::chrono::seconds timeout) {
+  auto end = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < end) {
+    if (done()) return true;
+    std::this_thread::sleep_for(50ms);
+  }
+  return done();
+}
+
+int count_files(const fs::path& dir, const std::string& suffix_excluded = ".json") {
+  if (!fs::exists(dir)) return 0;
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    std::string name = e.path().filename().string();
+    if (e.is_regular_file() && !(name.size() >= suffix_excluded.size() &&
+                                 name.compare(name.size() - suffix_excluded.size(), suffix_excluded.size(),
+                                              suffix_excluded) == 0))
+      ++n;
+  }
+  return n;
+}
+
+struct Daemon {
+  pid_t pid = -1;
+  int status = 0;
+  bool exited = false;
+  ~Daemon() {
+    if (pid > 0 && !exited) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &status, 0);
+    }
+  }
+  bool wait_exit(std::chrono::seconds timeout) {
+    auto end = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < end) {
+      pid_t r = ::waitpid(pid, &status, WNOHANG);
+      if (r == pid) return exited = true;
+      std::this_thread::sleep_for(20ms);
+    }
+    return false;
+  }
+};
+
+struct E2E : ::testing::Test {
+  void SetUp() override {
+    ::unsetenv("MESHMARK_MASTER_KEY");
+    dir = fs::temp_directory_path() / ("mm-e2e-" + std::to_string(::getpid()) + "-" +
+                                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir);
+    home = dir / "home";
+    drop = dir / "drop";
+    out = dir / "out";
+    fs::create_directories(drop);
+    fs::create_directories(out);
+    auto paths = mm::store::resolve_home(home.string());
+    mm::store::init_home(paths);
+    auto st = store();
+    st->add_customer("alpha", "test");
+    st->add_customer("beta", "test");
+    write_config({});
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir);
+    else std::cerr << "kept " << dir << " for inspection\n";
+  }
+  std::unique_ptr<mm::store::Store> store() {
+    return mm::store::open_home(mm::store::resolve_home(home.string()), true);
+  }
+  void write_config(const json& extra) {
+    json c{{"home", home.string()},     {"drop_dir", drop.string()}, {"output_dir", out.string()},
+           {"workers", 2},              {"lease_seconds", 20},       {"heartbeat_seconds", 2},
+           {"poll_interval_ms", 100},   {"settle_ms", 300},          {"shutdown_grace_seconds", 30},
+           {"log_file", (dir / "meshmarkd.log").string()}};
+    for (auto it = extra.begin(); it != extra.end(); ++it) c[it.key()] = it.value();
+    std::ofstream(dir / "meshmarkd.json") << c.dump(2);
+  }
+  Daemon start() {
+    Daemon d;
+    d.pid = ::fork();
+    if (d.pid == 0) {
+      std::string log = (dir / "meshmarkd.stderr").string();
+      FILE* f = std::freopen(log.c_str(), "a", stderr);
+      (void)f;
+      std::string cfg = (dir / "meshmarkd.json").string();
+      ::execl(MESHMARKD_EXE, MESHMARKD_EXE, "--config", cfg.c_str(), static_cast<char*>(nullptr));
+      std::_Exit(127);
+    }
+    return d;
+  }
+  // Copies a shared mesh into a drop folder the way a careful client does: temp name, rename.
+  void drop_mesh(const std::string& area, const std::string& mesh, const std::string& as = "") {
+    fs::create_directories(drop / area);
+    std::string name = as.empty() ? mesh : as;
+    fs::copy_file(mm::test::shared_mesh(mesh), drop / area / ("." + name + ".part"));
+    fs::rename(drop / area / ("." + name + ".part"), drop / area / name);
+  }
+  void drop_bytes(const std::string& area, const std::string& name, const std::string& bytes) {
+    fs::create_directories(drop / area);
+    std::ofstream(drop / area / name) << bytes;  // written in place: picked up at close
+  }
+  json reason(const fs::path& p) { return json::parse(slurp(p.string() + ".json")); }
+  fs::path output_of(mm::store::Store& st, const std::string& customer, const std::string& mesh) {
+    auto cust = st.find_customer(customer);
+    for (const auto& c : st.list_copies()) {
+      auto a = st.get_asset(c.asset_id);
+      if (c.customer_id == cust->id && a && a->name == mesh)
+        return json::parse(c.outputs_json)["files"][0]["path"].get<std::string>();
+    }
+    return {};
+  }
+  std::string log() { return slurp(dir / "meshmarkd.log") + slurp(dir / "meshmarkd.stderr"); }
+
+  fs::path dir, home, drop, out;
+};
+
+mm::Mesh with_noise(const mm::Mesh& m, double relative_sigma, unsigned seed) {
+  mm::Mesh n = m;
+  double diag = (m.points.colwise().maxCoeff() - m.points.colwise().minCoeff()).norm();
+  std::mt19937 g(seed);
+  std::normal_distribution<double> noise(0, relative_sigma * diag);
+  for (Eigen::Index i = 0; i < n.points.rows(); ++i)
+    for (int k = 0; k < 3; ++k) n.points(i, k) += noise(g);
+  return n;
+}
+
+TEST_F(E2E, ProtectsTwoCustomersAndTracesTheLeak) {
+  MM_REQUIRE_SHARED_MESHES();
+  Daemon d = start();
+  for (const auto& m : kMeshes) {
+    drop_mesh("protect/alpha", m);
+    drop_mesh("protect/beta", m);
+  }
+  drop_bytes("protect/alpha", "broken.off", "OFF\n4 1 0\n0 0 0\n1 0 0\nnan 1 0\n");
+  drop_mesh("protect/ghost", "abc7.stl");
+  ASSERT_TRUE(wait_for([&] {
+    return count_files(drop / "done/protect/alpha") == 4 && count_files(drop / "done/protect/beta") == 4 &&
+           count_files(drop / "failed/protect/alpha") == 1 && count_files(drop / "failed/protect/ghost") == 1;
+  }, 240s)) << log();
+
+  // The malformed file failed with its reason; the unknown customer too; the rest finished.
+  json broken = reason(drop / "failed/protect/alpha/broken.off");
+  EXPECT_EQ(broken["state"], "discarded");
+  EXPECT_NE(broken["reason"].get<std::string>().find("broken.off"), std::string::npos) << broken.dump();
+  json ghost = reason(drop / "failed/protect/ghost/abc7.stl");
+  EXPECT_NE(ghost["reason"].get<std::string>().find("unknown customer \"ghost\""), std::string::npos);
+  EXPECT_EQ(count_files(drop / "protect/alpha"), 0);
+  EXPECT_EQ(count_files(drop / "protect/beta"), 0);
+
+  auto st = store();
+  auto copies = st->list_copies();
+  ASSERT_EQ(copies.size(), 8u);
+  EXPECT_EQ(st->list_assets().size(), 4u);  // deduplicated originals
+  for (const auto& c : copies) {
+    auto f = json::parse(c.outputs_json)["files"][0];
+    fs::path p = f["path"].get<std::string>();
+    ASSERT_TRUE(fs::exists(p)) << p;
+    EXPECT_EQ(mm::store::sha256_file_hex(p.string()), f["sha256"].get<std::string>());
+    EXPECT_NO_THROW(mm::read_mesh(p.string()));
+  }
+  for (const auto& m : kMeshes) {
+    json r = reason(drop / "done/protect/beta" / m);
+    EXPECT_EQ(r["state"], "completed");
+    EXPECT_EQ(r["result"]["customer"], "beta");
+  }
+
+  // Leaks: beta's fandisk with small noise; alpha's abc9 as is (exact hash); the unmarked
+  // original abc7; an innocent noisy original fandisk.
+  fs::path beta_fandisk = output_of(*st, "beta", "fandisk_quads.off");
+  ASSERT_FALSE(beta_fandisk.empty());
+  fs::create_directories(dir / "leaks");
+  mm::write_mesh(with_noise(mm::read_mesh(beta_fandisk.string()), 2e-4, 1), (dir / "leaks/leak-fandisk.off").string());
+  fs::copy_file(dir / "leaks/leak-fandisk.off", drop / "detect/.leak-fandisk.off.tmp");
+  fs::rename(drop / "detect/.leak-fandisk.off.tmp", drop / "detect/leak-fandisk.off");
+  fs::copy_file(output_of(*st, "alpha", "abc9.stl"), drop / "detect/.x.tmp");
+  fs::rename(drop / "detect/.x.tmp", drop / "detect/leak-abc9.stl");
+  drop_mesh("detect", "abc7.stl", "original-abc7.stl");
+  mm::write_mesh(with_noise(mm::read_mesh(mm::test::shared_mesh("fandisk_quads.off")), 2e-4, 2),
+                 (dir / "leaks/innocent.off").string());
+  fs::copy_file(dir / "leaks/innocent.off", drop / "detect/.innocent.off.tmp");
+  fs::rename(drop / "detect/.innocent.off.tmp", drop / "detect/innocent.off");
+  ASSERT_TRUE(wait_for([&] { return count_files(drop / "done/detect") == 4; }, 120s)) << log();
+
+  json leak = reason(drop / "done/detect/leak-fandisk.off")["result"];
+  EXPECT_EQ(leak["verdict"], "attributed") << leak.dump();
+  EXPECT_EQ(leak["customer"], "beta") << leak.dump();
+  EXPECT_LT(leak["p_value"].get<double>(), 1e-9) << leak.dump();
+  json exact = reason(drop / "done/detect/leak-abc9.stl")["result"];
+  EXPECT_EQ(exact["verdict"], "attributed") << exact.dump();
+  EXPECT_EQ(exact["customer"], "alpha") << exact.dump();
+  EXPECT_LT(exact["p_value"].get<double>(), 1e-9);
+  for (const char* innocent : {"original-abc7.stl", "innocent.off"}) {
+    json r = reason(drop / "done/detect" / innocent)["result"];
+    EXPECT_EQ(r["verdict"], "no watermark found") << innocent << r.dump();
+    EXPECT_FALSE(r.contains("customer")) << r.dump();
+  }
+  auto dets = st->list_detections();
+  ASSERT_EQ(dets.size(), 4u);
+
+  ::kill(d.pid, SIGTERM);
+  ASSERT_TRUE(d.wait_exit(30s));
+  EXPECT_TRUE(WIFEXITED(d.status) && WEXITSTATUS(d.status) == 0) << d.status;
+  EXPECT_TRUE(st->integrity_ok());
+  EXPECT_EQ(st->counts().running, 0);
+  // Secrets never reach the log.
+  auto key = st->customer_key(st->find_customer("beta")->id);
+  std::string hex;
+  for (auto b : key.key.bytes()) {
+    char buf[3];
+    std::snprintf(buf, sizeof buf, "%02x", b);
+    hex += buf;
+  }
+  EXPECT_EQ(log().find(hex), std::string::npos);
+  EXPECT_NE(log().find("draining"), std::string::npos);
+}
+
+TEST_F(E2E, KillNineMidBatchThenRestartCompletesEveryJobExactlyOnce) {
+  MM_REQUIRE_SHARED_MESHES();
+  write_config({{"lease_seconds", 4}, {"heartbeat_seconds", 1}});
+  // Four customers x four parts: 16 protect jobs; fandisk's basis makes some of them slow enough
+  // to be caught running.
+  auto st = store();
+  st->add_customer("gamma", "test");
+  st->add_customer("delta", "test");
+  const std::vector<std::string> customers = {"alpha", "beta", "gamma", "delta"};
+  {
+    Daemon d = start();
+    for (const auto& m : kMeshes)
+      for (const auto& c : customers) drop_mesh("protect/" + c, m);
+    // Kill while at least one job is running and the batch is not finished.
+    ASSERT_TRUE(wait_for([&] {
+      auto n = st->counts();
+      return n.running > 0 && n.completed < 16 && n.available + n.running + n.completed >= 16;
+    }, 120s)) << log();
+    ::kill(d.pid, SIGKILL);
+    ASSERT_TRUE(d.wait_exit(10s));
+  }
+  auto mid = st->counts();
+  EXPECT_LT(mid.completed, 16);
+  {
+    Daemon d = start();
+    ASSERT_TRUE(wait_for([&] {
+      int n = 0;
+      for (const auto& c : customers) n += count_files(drop / "done/protect" / c);
+      return n == 16;
+    }, 240s)) << log();
+    ::kill(d.pid, SIGTERM);
+    ASSERT_TRUE(d.wait_exit(30s));
+  }
+  auto jobs = st->list_jobs({});
+  ASSERT_EQ(jobs.size(), 16u);
+  for (const auto& j : jobs) EXPECT_EQ(j.state, mm::store::JobState::completed) << j.id;
+  auto copies = st->list_copies();
+  ASSERT_EQ(copies.size(), 16u);
+  std::set<std::pair<std::int64_t, std::int64_t>> pairs;
+  std::set<std::string> outputs;
+  for (const auto& c : copies) {
+    pairs.insert({c.asset_id, c.customer_id});
+    auto f = json::parse(c.outputs_json)["files"][0];
+    outputs.insert(f["path"].get<std::string>());
+    EXPECT_EQ(mm::store::sha256_file_hex(f["path"].get<std::string>()), f["sha256"].get<std::string>());
+    EXPECT_NO_THROW(mm::read_mesh(f["path"].get<std::string>()));
+  }
+  EXPECT_EQ(pairs.size(), 16u);  // one copy per (asset, customer): no duplicates
+  EXPECT_EQ(outputs.size(), 16u);
+  // Nothing half-written or duplicated on disk.
+  for (const auto& c : customers) {
+    EXPECT_EQ(count_files(out / c, ".never"), 4) << c;
+    EXPECT_EQ(count_files(drop / "done/protect" / c), 4) << c;
+    for (const auto& e : fs::directory_iterator(out / c))
+      EXPECT_NE(e.path().filename().string()[0], '.') << e.path();
+  }
+  EXPECT_TRUE(st->integrity_ok());
+}
+
+TEST_F(E2E, SigtermAfterDeadlineReleasesRunningJobs) {
+  MM_REQUIRE_SHARED_MESHES();
+  write_config({{"shutdown_grace_seconds", 0}, {"workers", 1}});
+  Daemon d = start();
+  auto st = store();
+  drop_mesh("protect/alpha", "fandisk_quads.off");
+  ASSERT_TRUE(wait_for([&] { return st->counts().running == 1; }, 60s)) << log();
+  ::kill(d.pid, SIGTERM);
+  ASSERT_TRUE(d.wait_exit(20s));
+  EXPECT_TRUE(WIFEXITED(d.status) && WEXITSTATUS(d.status) == 0);
+  auto n = st->counts();
+  EXPECT_EQ(n.running, 0);
+  // Either it finished inside the zero grace or it went back to the queue without losing an attempt.
+  EXPECT_EQ(n.available + n.completed, 1);
+  auto jobs = st->list_jobs({});
+  ASSERT_EQ(jobs.size(), 1u);
+  if (jobs[0].state == mm::store::JobState::available) {
+    EXPECT_NE(log().find("released"), std::string::npos) << log();
+    EXPECT_TRUE(jobs[0].errors.empty());
+  }
+  // The next start finishes it.
+  Daemon d2 = start();
+  ASSERT_TRUE(wait_for([&] { return count_files(drop / "done/protect/alpha") == 1; }, 60s)) << log();
+  ::kill(d2.pid, SIGTERM);
+  ASSERT_TRUE(d2.wait_exit(30s));
+  EXPECT_EQ(st->list_copies().size(), 1u);
+}
+
+TEST_F(E2E, SighupReloadsAndLogsChanges) {
+  Daemon d = start();
+  ASSERT_TRUE(wait_for([&] { return log().find("meshmarkd started") != std::string::npos; }, 30s)) << log();
+  write_config({{"log_level", "debug"}, {"workers", 3}});
+  ::kill(d.pid, SIGHUP);
+  ASSERT_TRUE(wait_for([&] { return log().find("log_level: info -> debug") != std::string::npos; }, 10s)) << log();
+  EXPECT_NE(log().find("workers: 2 -> 3 (takes effect after a restart)"), std::string::npos) << log();
+  std::ofstream(dir / "meshmarkd.json") << "{ not json";
+  ::kill(d.pid, SIGHUP);
+  ASSERT_TRUE(wait_for([&] { return log().find("configuration not reloaded") != std::string::npos; }, 10s)) << log();
+  ::kill(d.pid, SIGTERM);
+  ASSERT_TRUE(d.wait_exit(30s));
+  EXPECT_EQ(WEXITSTATUS(d.status), 0);
+}
+
+TEST_F(E2E, InvalidConfigRefusesToStart) {
+  std::ofstream(dir / "meshmarkd.json") << R"({"home": "/nonexistent/meshmark", "drop_dir": 3})";
+  Daemon d = start();
+  ASSERT_TRUE(d.wait_exit(30s));
+  EXPECT_EQ(WEXITSTATUS(d.status), 78);
+  std::string err = slurp(dir / "meshmarkd.stderr");
+  EXPECT_NE(err.find("drop_dir: must be a string"), std::string::npos) << err;
+  EXPECT_NE(err.find("output_dir: missing"), std::string::npos) << err;
+}
+
+TEST_F(E2E, BatchRunUntilEmptyWithoutDaemon) {
+  MM_REQUIRE_SHARED_MESHES();
+  drop_mesh("protect/alpha", "abc7.stl");
+  drop_mesh("protect/beta", "chamfer-cube.off");
+  // Also a CLI submission (not via drop folder), twice: the second is the same job.
+  std::string cfg = (dir / "meshmarkd.json").string();
+  std::string sub = std::string(MESHMARK_EXE) + " submit protect --config " + cfg + " --customer beta --json " +
+                    mm::test::shared_mesh("abc9.stl") + " > " + (dir / "submit.json").string();
+  ASSERT_EQ(std::system(sub.c_str()), 0);
+  ASSERT_EQ(std::system(sub.c_str()), 0);
+  EXPECT_EQ(json::parse(slurp(dir / "submit.json"))[0]["created"], false);
+  // Files must look settled: backdate them past settle_ms.
+  for (auto p : {drop / "protect/alpha/abc7.stl", drop / "protect/beta/chamfer-cube.off"})
+    fs::last_write_time(p, fs::file_time_type::clock::now() - 10s);
+  std::string run = std::string(MESHMARK_EXE) + " run --until-empty --json --config " + cfg + " > " +
+                    (dir / "run.json").string();
+  ASSERT_EQ(std::system(run.c_str()), 0) << slurp(dir / "run.json") << log();
+  json r = json::parse(slurp(dir / "run.json"));
+  EXPECT_EQ(r["submitted_from_drops"], 2);
+  EXPECT_EQ(r["completed"], 3);
+  EXPECT_EQ(r["queue"]["available"], 0);
+  EXPECT_EQ(count_files(drop / "done/protect/alpha"), 1);
+  EXPECT_EQ(count_files(drop / "done/protect/beta"), 1);
+  EXPECT_EQ(store()->list_copies().size(), 3u);
+}
+
+}  // namespace
