@@ -1,0 +1,199 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <array>
+#include <map>
+
+#include "common/shared_meshes.h"
+#include "meshio/read_mesh.h"
+#include "quality/surface_distance.h"
+
+namespace {
+
+// Flat n x n quad grid over [0, 1]^2 at z = 0.
+mm::Mesh square_grid(int n) {
+  mm::Mesh m;
+  m.points.resize((n + 1) * (n + 1), 3);
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) m.points.row(j * (n + 1) + i) << double(i) / n, double(j) / n, 0;
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const int a = j * (n + 1) + i;
+      m.faces.push_back({a, a + 1, a + n + 2, a + n + 1});
+    }
+  return m;
+}
+
+// Closed unit cube of 6 quads.
+mm::Mesh cube() {
+  mm::Mesh m;
+  m.points.resize(8, 3);
+  for (int i = 0; i < 8; ++i) m.points.row(i) << (i & 1), (i >> 1) & 1, (i >> 2) & 1;
+  m.faces = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  return m;
+}
+
+// Icosphere of radius 1: icosahedron subdivided `levels` times, projected to the sphere.
+mm::Mesh icosphere(int levels) {
+  const double t = (1 + std::sqrt(5.0)) / 2;
+  std::vector<Eigen::Vector3d> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0},
+                                    {0, -1, t}, {0, 1, t}, {0, -1, -t}, {0, 1, -t},
+                                    {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+  for (auto& p : v) p.normalize();
+  std::vector<std::array<int, 3>> f = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11},
+                                       {1, 5, 9}, {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                                       {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8}, {3, 8, 9},
+                                       {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+  for (int l = 0; l < levels; ++l) {
+    std::map<std::pair<int, int>, int> mid;
+    auto midpoint = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      auto it = mid.find(key);
+      if (it != mid.end()) return it->second;
+      v.push_back((v[a] + v[b]).normalized());
+      return mid[key] = static_cast<int>(v.size()) - 1;
+    };
+    std::vector<std::array<int, 3>> next;
+    for (const auto& tri : f) {
+      const int ab = midpoint(tri[0], tri[1]), bc = midpoint(tri[1], tri[2]), ca = midpoint(tri[2], tri[0]);
+      next.push_back({tri[0], ab, ca});
+      next.push_back({tri[1], bc, ab});
+      next.push_back({tri[2], ca, bc});
+      next.push_back({ab, bc, ca});
+    }
+    f = next;
+  }
+  mm::Mesh m;
+  m.points.resize(static_cast<int>(v.size()), 3);
+  for (size_t i = 0; i < v.size(); ++i) m.points.row(i) = v[i].transpose();
+  for (const auto& tri : f) m.faces.push_back({tri[0], tri[1], tri[2]});
+  return m;
+}
+
+mm::SamplingParams fast() {
+  mm::SamplingParams p;
+  p.samples = 20000;
+  return p;
+}
+
+}  // namespace
+
+TEST(SurfaceDistance, IdenticalMeshesAreAtZero) {
+  const mm::Mesh s = icosphere(3);
+  const auto d = mm::surface_distance(s, s, fast());
+  EXPECT_LT(d.hausdorff, 1e-12);
+  EXPECT_LT(d.rms, 1e-12);
+  EXPECT_LT(d.mean, 1e-12);
+  EXPECT_NEAR(d.diagonal, 2 * std::sqrt(3.0), 0.05);  // the box of a unit sphere
+  EXPECT_EQ(d.a_to_b.samples, 20000u + s.num_vertices());
+}
+
+TEST(SurfaceDistance, TranslatedCopyIsAtTheTranslation) {
+  // A flat square moved along its normal: every sample is exactly that far away.
+  const mm::Mesh a = square_grid(8);
+  mm::Mesh b = a;
+  b.points.col(2).array() += 0.03;
+  const auto d = mm::surface_distance(a, b, fast());
+  EXPECT_NEAR(d.hausdorff, 0.03, 1e-12);
+  EXPECT_NEAR(d.mean, 0.03, 1e-12);
+  EXPECT_NEAR(d.rms, 0.03, 1e-12);
+  EXPECT_NEAR(d.hausdorff_relative(), 0.03 / std::sqrt(2.0), 1e-12);
+  // A cube moved sideways: the faces across the move are d apart, the others partly overlap,
+  // so the Hausdorff distance is the move and the mean is smaller.
+  const mm::Mesh c = cube();
+  mm::Mesh moved = c;
+  moved.points.col(0).array() += 0.1;
+  const auto dc = mm::surface_distance(c, moved, fast());
+  EXPECT_NEAR(dc.hausdorff, 0.1, 1e-9);
+  EXPECT_LT(dc.mean, 0.1);
+  EXPECT_GT(dc.mean, 0.0);
+}
+
+TEST(SurfaceDistance, SphereAgainstScaledSphere) {
+  const mm::Mesh s = icosphere(4);  // chord sag below 1e-3
+  mm::Mesh big = s;
+  big.points *= 1.1;
+  const auto d = mm::surface_distance(s, big, fast());
+  EXPECT_NEAR(d.hausdorff, 0.1, 2e-3);
+  EXPECT_NEAR(d.mean, 0.1, 2e-3);
+  EXPECT_NEAR(d.rms, 0.1, 2e-3);
+  EXPECT_LE(d.mean, d.rms);
+  EXPECT_LE(d.rms, d.hausdorff);
+}
+
+TEST(SurfaceDistance, MissingPartShowsOnlyOneWay) {
+  // b is a with the upper cap removed (all faces with a vertex above z = 0.6): b's samples all lie
+  // on a, but a's cap samples are far from b.
+  const mm::Mesh a = icosphere(3);
+  mm::Mesh b = a;
+  b.faces.clear();
+  for (const auto& f : a.faces) {
+    bool cap = false;
+    for (int v : f) cap = cap || a.points(v, 2) > 0.6;
+    if (!cap) b.faces.push_back(f);
+  }
+  ASSERT_LT(b.faces.size(), a.faces.size());
+  const auto d = mm::surface_distance(a, b, fast());
+  EXPECT_LT(d.b_to_a.max, 1e-12);
+  EXPECT_GT(d.a_to_b.max, 0.3);  // the pole is ~0.4 from the cut rim
+  EXPECT_EQ(d.hausdorff, d.a_to_b.max);
+  EXPECT_EQ(d.mean, d.a_to_b.mean);
+  // One-sided distance from the part to the whole sees nothing.
+  EXPECT_LT(mm::one_sided_distance(b, a, fast()).max, 1e-12);
+}
+
+TEST(SurfaceDistance, SamplingIsAreaWeightedAndDeterministic) {
+  // Two squares side by side, the second four times the area, as one mesh: samples split 1:4.
+  mm::Mesh m;
+  m.points.resize(8, 3);
+  m.points << 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 5, 0, 0, 7, 0, 0, 7, 2, 0, 5, 2, 0;
+  m.faces = {{0, 1, 2, 3}, {4, 5, 6, 7}};
+  const auto s = mm::sample_surface(m, 10000, 7, false);
+  ASSERT_EQ(s.size(), 10000u);
+  int small = 0;
+  for (const auto& p : s) {
+    small += p.x() <= 1;
+    EXPECT_TRUE((p.x() >= 0 && p.x() <= 1 && p.y() >= 0 && p.y() <= 1) ||
+                (p.x() >= 5 && p.x() <= 7 && p.y() >= 0 && p.y() <= 2));
+  }
+  EXPECT_NEAR(small, 2000, 1);
+  EXPECT_EQ(mm::sample_surface(m, 100, 3, true), mm::sample_surface(m, 100, 3, true));
+  EXPECT_NE(mm::sample_surface(m, 100, 3, false), mm::sample_surface(m, 100, 4, false));
+  const mm::Mesh sphere = icosphere(2);
+  mm::Mesh big = sphere;
+  big.points *= 1.05;
+  EXPECT_EQ(mm::surface_distance(sphere, big, fast()).rms, mm::surface_distance(sphere, big, fast()).rms);
+}
+
+TEST(SurfaceDistance, BadInputIsRefused) {
+  mm::Mesh empty;
+  empty.points.resize(0, 3);
+  EXPECT_THROW(mm::surface_distance(cube(), empty), mm::InputError);
+  mm::Mesh flat = cube();
+  flat.points.col(2).setZero();
+  flat.points.col(1).setZero();  // everything on a line: no area anywhere
+  EXPECT_THROW(mm::surface_distance(cube(), flat), mm::InputError);
+  mm::Mesh nan = cube();
+  nan.points(2, 1) = std::nan("");
+  EXPECT_THROW(mm::surface_distance(cube(), nan), mm::InputError);
+  mm::Mesh bad = cube();
+  bad.faces[0][0] = 42;
+  EXPECT_THROW(mm::surface_distance(bad, cube()), mm::InputError);
+}
+
+TEST(SurfaceDistance, RealPartMovedSlightly) {
+  MM_REQUIRE_SHARED_MESHES();
+  // fandisk moved by 0.1% of its diagonal in a skew direction: no sample is farther than the
+  // move, and the flat faces facing the move are nearly that far.
+  const mm::Mesh a = mm::read_mesh(mm::test::shared_mesh("fandisk.off"));
+  mm::Mesh b = a;
+  const double diag = (a.points.colwise().maxCoeff() - a.points.colwise().minCoeff()).norm();
+  const Eigen::RowVector3d move = Eigen::RowVector3d(1, 2, 2) / 3.0 * (0.001 * diag);
+  b.points.rowwise() += move;
+  const auto d = mm::surface_distance(a, b, fast());
+  EXPECT_NEAR(d.diagonal, diag, 1e-12);
+  EXPECT_LE(d.hausdorff, move.norm() * (1 + 1e-9));
+  EXPECT_GT(d.hausdorff, 0.9 * move.norm());
+  EXPECT_GT(d.mean, 0.2 * move.norm());
+  EXPECT_NEAR(d.hausdorff_relative(), d.hausdorff / diag, 1e-15);
+}

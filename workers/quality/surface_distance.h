@@ -1,0 +1,47 @@
+// Distances between two surfaces, as the compression targets are stated: symmetric Hausdorff,
+// RMS and mean distance, absolute and relative to the bounding-box diagonal of the first mesh.
+// Each surface is sampled densely (area-weighted, seeded, plus its vertices) and every sample is
+// measured to the closest point of the other surface with an AABB tree (CGAL).
+#pragma once
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "meshio/mesh.h"
+
+namespace mm {
+
+struct SamplingParams {
+  int samples = 200000;        // area-weighted samples per surface, besides its vertices
+  std::uint64_t seed = 1;      // same seed, same samples, same numbers
+  bool include_vertices = true;
+};
+
+// Distances from the samples of one surface to the other surface.
+struct OneSidedDistance {
+  double max = 0, mean = 0, rms = 0;
+  std::size_t samples = 0;
+};
+
+struct SurfaceDistance {
+  OneSidedDistance a_to_b, b_to_a;
+  // Symmetric values: the larger of the two directions for each statistic (so a missing part
+  // on either side shows).
+  double hausdorff = 0, rms = 0, mean = 0;
+  double diagonal = 0;  // bounding-box diagonal of mesh a
+  double hausdorff_relative() const { return hausdorff / diagonal; }
+  double rms_relative() const { return rms / diagonal; }
+  double mean_relative() const { return mean / diagonal; }
+};
+
+// Area-weighted points on the surface: systematic sampling along the cumulative face area from a
+// seeded offset, uniform within each triangle. Polygons are split into fans. Throws
+// InputError("quality", reason) when the mesh has no face of positive area or bad indices or
+// coordinates.
+std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::uint64_t seed,
+                                            bool include_vertices);
+
+OneSidedDistance one_sided_distance(const Mesh& from, const Mesh& to, const SamplingParams& params = {});
+SurfaceDistance surface_distance(const Mesh& a, const Mesh& b, const SamplingParams& params = {});
+
+}  // namespace mm
