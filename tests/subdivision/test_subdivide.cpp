@@ -108,6 +108,24 @@ TEST(Subdivision, RowsSumToOneAndAreConvex) {
   EXPECT_LT((via_steps - op.refined.points).cwiseAbs().maxCoeff(), 1e-12);
 }
 
+TEST(Subdivision, DirectEvaluationEqualsOperator) {
+  // subdivide() evaluates the same rules on the points level by level, without matrices.
+  Mesh m = mixed_house();
+  m.creases = {{0, 1}, {1, 2}, {4, 8}};
+  m.corners = {3};
+  std::vector<Mesh> meshes{m, jittered(grid(3, 3), 0.1), jittered(cube(), 0.1)};
+  meshes.back().faces[0] = {0, 3, 2};  // open cube with a triangle, a quad-less vertex, boundary
+  for (const Mesh& x : meshes)
+    for (int level = 0; level <= 3; ++level) {
+      const SubdivisionOperator op = build_subdivision(x, level);
+      const Mesh d = subdivide(x, level);
+      EXPECT_EQ(d.faces, op.refined.faces);
+      EXPECT_EQ(d.creases, op.refined.creases);
+      EXPECT_EQ(d.corners, op.refined.corners);
+      EXPECT_LT((d.points - op.S * x.points).cwiseAbs().maxCoeff(), 1e-12) << "level " << level;
+    }
+}
+
 TEST(Subdivision, PlanarMixedInputStaysPlanar) {
   // Grid with alternate quads split into triangles, in a tilted plane.
   Mesh g = grid(5, 4);

@@ -210,11 +210,14 @@ class RowBuilder {
   // Appends the row (sorted columns, zero weights dropped) to row `r` of a compressed row-major
   // matrix being filled in order, and resets.
   void flush(SparseOperator& M, int r) {
-    order_.resize(cols_.size());
-    for (size_t i = 0; i < cols_.size(); ++i) order_[i] = static_cast<int>(i);
-    std::sort(order_.begin(), order_.end(), [&](int x, int y) { return cols_[x] < cols_[y]; });
+    // Rows are short (< 30 entries): insertion sort by column.
+    for (size_t i = 1; i < cols_.size(); ++i)
+      for (size_t j = i; j > 0 && cols_[j - 1] > cols_[j]; --j) {
+        std::swap(cols_[j - 1], cols_[j]);
+        std::swap(vals_[j - 1], vals_[j]);
+      }
     auto& data = M.data();
-    for (int i : order_) {
+    for (size_t i = 0; i < cols_.size(); ++i) {
       if (vals_[i] != 0.0) data.append(vals_[i], cols_[i]);
       slot_[cols_[i]] = -1;
     }
@@ -224,7 +227,7 @@ class RowBuilder {
   }
 
  private:
-  std::vector<int> slot_, cols_, order_;
+  std::vector<int> slot_, cols_;
   std::vector<double> vals_;
 };
 
@@ -244,35 +247,64 @@ void loop_weights(int n, double& vertex_w, double& edge_w) {
   }
 }
 
-struct StepResult {
-  SparseOperator M;
-  Level child;
+// Receives the rows of one step in order: add(coarse vertex, weight) ... end_row().
+// MatrixSink assembles the sparse step matrix; PointSink evaluates the child points directly.
+class MatrixSink {
+ public:
+  MatrixSink(SparseOperator& M, int nchild, int nv) : M_(M), row_(nv) {
+    M_.resize(nchild, nv);
+    M_.data().reserve(static_cast<Eigen::Index>(nchild) * 9);
+  }
+  void add(int col, double w) { row_.add(col, w); }
+  void end_row() { row_.flush(M_, r_++); }
+
+ private:
+  SparseOperator& M_;
+  RowBuilder row_;
+  int r_ = 0;
 };
 
-// One subdivision step: the weights of every child vertex, and the child topology.
-StepResult refine(const Level& L) {
-  const Adjacency a = adjacency(L);
+class PointSink {
+ public:
+  PointSink(const Points& in, Points& out, int nchild) : in_(in), out_(out) { out_.resize(nchild, 3); }
+  void add(int col, double w) {
+    x_ += w * in_(col, 0);
+    y_ += w * in_(col, 1);
+    z_ += w * in_(col, 2);
+  }
+  void end_row() {
+    out_(r_, 0) = x_;
+    out_(r_, 1) = y_;
+    out_(r_, 2) = z_;
+    ++r_;
+    x_ = y_ = z_ = 0.0;
+  }
+
+ private:
+  const Points& in_;
+  Points& out_;
+  int r_ = 0;
+  double x_ = 0, y_ = 0, z_ = 0;
+};
+
+// Face points only for non-triangles, numbered after the vertices in face order.
+std::vector<int> face_point_indices(const Level& L, int& nfp) {
+  std::vector<int> fpoint(L.nf(), -1);
+  nfp = 0;
+  for (int f = 0; f < L.nf(); ++f)
+    if (L.fsize(f) != 3) fpoint[f] = L.nv + nfp++;
+  return fpoint;
+}
+
+// The subdivision rules (docs/subdivision.md): one row per child vertex, in child order
+// [vertex points, face points, edge points].
+template <class Sink>
+void emit_rows(const Level& L, const Adjacency& a, const std::vector<int>& fpoint, Sink& sink) {
   const int nv = L.nv, nf = L.nf(), ne = L.ne();
-
-  // Face points only for non-triangles, in face order.
-  std::vector<int> fpoint(nf, -1);
-  int nfp = 0;
-  for (int f = 0; f < nf; ++f)
-    if (L.fsize(f) != 3) fpoint[f] = nv + nfp++;
-  const int nchild = nv + nfp + ne;
-  auto epoint = [&](int e) { return nv + nfp + e; };
   auto sharp = [&](int e) { return L.ecrease[e] || a.efaces[e][1] < 0; };
-
-  StepResult r;
-  SparseOperator& M = r.M;
-  M.resize(nchild, nv);
-  M.data().reserve(static_cast<Eigen::Index>(nchild) * 9);
-  int crow = 0;
-  RowBuilder row(nv);
-
   auto add_face_point = [&](int f, double w) {  // w * centroid of face f
     const double wi = w / L.fsize(f);
-    for (int k = L.foff[f]; k < L.foff[f + 1]; ++k) row.add(L.fverts[k], wi);
+    for (int k = L.foff[f]; k < L.foff[f + 1]; ++k) sink.add(L.fverts[k], wi);
   };
   auto other_end = [&](int e, int v) { return L.everts[e][0] == v ? L.everts[e][1] : L.everts[e][0]; };
 
@@ -286,11 +318,11 @@ StepResult refine(const Level& L) {
         ++nsharp;
       }
     if (L.vcorner[v] || nsharp > 2 || a.vfaces.size(v) == 0) {
-      row.add(v, 1.0);  // corner
+      sink.add(v, 1.0);  // corner
     } else if (nsharp == 2) {
-      row.add(v, 0.75);  // crease
-      row.add(other_end(s0, v), 0.125);
-      row.add(other_end(s1, v), 0.125);
+      sink.add(v, 0.75);  // crease
+      sink.add(other_end(s0, v), 0.125);
+      sink.add(other_end(s1, v), 0.125);
     } else {
       int ntri = 0, nquad = 0;
       for (const int* f = a.vfaces.begin(v); f != a.vfaces.end(v); ++f)
@@ -298,59 +330,72 @@ StepResult refine(const Level& L) {
       if (nquad == 0) {  // Loop
         double vw, ew;
         loop_weights(nedges, vw, ew);
-        row.add(v, vw);
-        for (const int* e = a.vedges.begin(v); e != a.vedges.end(v); ++e) row.add(other_end(*e, v), ew);
+        sink.add(v, vw);
+        for (const int* e = a.vedges.begin(v); e != a.vedges.end(v); ++e) sink.add(other_end(*e, v), ew);
       } else if (ntri == 0) {  // Catmull-Clark
         const double n = nedges, w = 1.0 / (n * n);
-        row.add(v, (n - 2.0) / n);
-        for (const int* e = a.vedges.begin(v); e != a.vedges.end(v); ++e) row.add(other_end(*e, v), w);
+        sink.add(v, (n - 2.0) / n);
+        for (const int* e = a.vedges.begin(v); e != a.vedges.end(v); ++e) sink.add(other_end(*e, v), w);
         for (const int* f = a.vfaces.begin(v); f != a.vfaces.end(v); ++f) add_face_point(*f, w);
       } else {  // Stam-Loop averaging of the split mesh: 1 (vertex), 1/2 (edge midpoints),
                 // 1/4 (quad centres), normalised.
         const double alpha = 1.0 / (1.0 + nedges / 2.0 + nquad / 4.0);
-        row.add(v, alpha * (1.0 + nedges / 4.0));
+        sink.add(v, alpha * (1.0 + nedges / 4.0));
         for (const int* e = a.vedges.begin(v); e != a.vedges.end(v); ++e)
-          row.add(other_end(*e, v), alpha / 4.0);
+          sink.add(other_end(*e, v), alpha / 4.0);
         for (const int* f = a.vfaces.begin(v); f != a.vfaces.end(v); ++f)
           if (L.fsize(*f) != 3) add_face_point(*f, alpha / 4.0);
       }
     }
-    row.flush(M, crow++);
+    sink.end_row();
   }
   // Face points.
   for (int f = 0; f < nf; ++f)
     if (fpoint[f] >= 0) {
       add_face_point(f, 1.0);
-      row.flush(M, crow++);
+      sink.end_row();
     }
   // Edge points: 1/4 per endpoint plus each face's wing (triangle: 1/16 per endpoint and 1/8
-  // opposite, i.e. Loop; other faces: 1/4 of the face point, i.e. Catmull-Clark).
+  // opposite, i.e. Loop; other faces: 1/4 of the face point, i.e. Catmull-Clark). For triangles
+  // and quads that is 3/8 per endpoint, 1/8 per opposite triangle vertex, 1/16 per far quad corner.
   for (int e = 0; e < ne; ++e) {
     const int v0 = L.everts[e][0], v1 = L.everts[e][1];
     if (sharp(e)) {
-      row.add(v0, 0.5);
-      row.add(v1, 0.5);
+      sink.add(v0, 0.5);
+      sink.add(v1, 0.5);
+    } else if (L.fsize(a.efaces[e][0]) <= 4 && L.fsize(a.efaces[e][1]) <= 4) {
+      sink.add(v0, 0.375);
+      sink.add(v1, 0.375);
+      for (int f : a.efaces[e]) {
+        const double wing = L.fsize(f) == 3 ? 0.125 : 0.0625;
+        for (int k = L.foff[f]; k < L.foff[f + 1]; ++k)
+          if (L.fverts[k] != v0 && L.fverts[k] != v1) sink.add(L.fverts[k], wing);
+      }
     } else {
-      row.add(v0, 0.25);
-      row.add(v1, 0.25);
+      sink.add(v0, 0.25);
+      sink.add(v1, 0.25);
       for (int f : a.efaces[e]) {
         if (L.fsize(f) == 3) {
-          row.add(v0, 0.0625);
-          row.add(v1, 0.0625);
+          sink.add(v0, 0.0625);
+          sink.add(v1, 0.0625);
           for (int k = L.foff[f]; k < L.foff[f + 1]; ++k)
-            if (L.fverts[k] != v0 && L.fverts[k] != v1) row.add(L.fverts[k], 0.125);
+            if (L.fverts[k] != v0 && L.fverts[k] != v1) sink.add(L.fverts[k], 0.125);
         } else {
           add_face_point(f, 0.25);
         }
       }
     }
-    row.flush(M, crow++);
+    sink.end_row();
   }
+}
 
-
-  // Child topology, numbered as OpenSubdiv: faces by parent face; edges interior to faces first
-  // (by face), then the two halves of each parent edge.
-  Level& C = r.child;
+// Child topology, numbered as OpenSubdiv: faces by parent face; edges interior to faces first
+// (by face), then the two halves of each parent edge.
+Level child_level(const Level& L, const std::vector<int>& fpoint, int nfp) {
+  const int nv = L.nv, nf = L.nf(), ne = L.ne();
+  const int nchild = nv + nfp + ne;
+  auto epoint = [&](int e) { return nv + nfp + e; };
+  Level C;
   C.nv = nchild;
   int nint = 0;
   int nchild_faces = 0;
@@ -420,7 +465,7 @@ StepResult refine(const Level& L) {
   }
   C.vcorner.assign(nchild, 0);
   std::copy(L.vcorner.begin(), L.vcorner.end(), C.vcorner.begin());
-  return r;
+  return C;
 }
 
 // A * B row by row with a dense accumulator (Gustavson); several times faster here than Eigen's
@@ -456,7 +501,8 @@ struct Steps {
   Mesh refined;  // topology only
 };
 
-Steps build_steps(const Mesh& control, int levels) {
+// With `points`, refines those points level by level instead of building the step matrices.
+Steps build_steps(const Mesh& control, int levels, Points* points) {
   if (levels < 0 || levels > kMaxSubdivisionLevels)
     throw std::invalid_argument("subdivision levels must be in [0, " +
                                 std::to_string(kMaxSubdivisionLevels) + "], got " +
@@ -488,10 +534,23 @@ Steps build_steps(const Mesh& control, int levels) {
   corners.erase(std::unique(corners.begin(), corners.end()), corners.end());
 
   Steps out;
+  if (points) *points = control.points;
   for (int k = 0; k < levels; ++k) {
-    StepResult r = refine(L);
-    out.steps.push_back(std::move(r.M));
-    L = std::move(r.child);
+    const Adjacency a = adjacency(L);
+    int nfp = 0;
+    const std::vector<int> fpoint = face_point_indices(L, nfp);
+    const int nchild = L.nv + nfp + L.ne();
+    if (points) {
+      Points next;
+      PointSink sink(*points, next, nchild);
+      emit_rows(L, a, fpoint, sink);
+      *points = std::move(next);
+    } else {
+      out.steps.emplace_back();
+      MatrixSink sink(out.steps.back(), nchild, L.nv);
+      emit_rows(L, a, fpoint, sink);
+    }
+    L = child_level(L, fpoint, nfp);
   }
   out.refined = to_mesh(L, corners);
   return out;
@@ -506,7 +565,7 @@ Points apply_steps(const std::vector<SparseOperator>& steps, const Points& p0) {
 }  // namespace
 
 SubdivisionOperator build_subdivision(const Mesh& control, int levels) {
-  Steps st = build_steps(control, levels);
+  Steps st = build_steps(control, levels, nullptr);
   SubdivisionOperator op;
   const int n = control.num_vertices();
   op.S.resize(n, n);
@@ -527,8 +586,9 @@ Points apply_subdivision(const SubdivisionOperator& op, const Points& control_po
 
 Mesh subdivide(const Mesh& control, int levels) {
   // No composed operator: refining the points level by level is all decompression needs.
-  Steps st = build_steps(control, levels);
-  st.refined.points = apply_steps(st.steps, control.points);
+  Points points;
+  Steps st = build_steps(control, levels, &points);
+  st.refined.points = std::move(points);
   return std::move(st.refined);
 }
 
