@@ -190,6 +190,22 @@ TEST(SpectralBasis, DeserializationRejectsDamage) {
   expect_error(huge, "out of range");
 }
 
+TEST(SpectralBasis, EveryTruncationAndByteFlipIsRejected) {
+  const auto good = serialize_basis(compute_basis(test::cube()));
+  for (std::size_t len = 0; len < good.size(); ++len)
+    EXPECT_THROW(deserialize_basis(std::vector<std::uint8_t>(good.begin(), good.begin() + len)),
+                 InputError)
+        << len;
+  for (std::size_t i = 0; i < good.size(); ++i) {
+    auto bad = good;
+    bad[i] ^= 0x40;
+    EXPECT_THROW(deserialize_basis(bad), InputError) << i;
+  }
+  auto longer = good;
+  longer.push_back(0);
+  EXPECT_THROW(deserialize_basis(longer), InputError);
+}
+
 TEST(SpectralBasis, RefusesEmptyAndOversizedMeshes) {
   EXPECT_THROW(compute_basis(Mesh{}), InputError);
   Mesh big;
