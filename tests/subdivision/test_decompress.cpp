@@ -41,6 +41,13 @@ TEST(Decompress, ChoosesSmallestLevelReachingTarget) {
   EXPECT_THROW(level_for_triangle_count(m, 10, -1), std::invalid_argument);
 }
 
+TEST(Decompress, LevelChoiceStaysWithinTheSizeLimit) {
+  const Mesh big = mm::test::grid(300, 300);  // 180k triangles after triangulation
+  const int level = level_for_triangle_count(big, 1LL << 40, 6);
+  EXPECT_EQ(level, 2);  // level 3 would be 11.5M triangles
+  EXPECT_LE(subdivided_triangle_count(big, level), 2 * kMaxRefinedVertices);
+}
+
 TEST(Decompress, TriangulateKeepsShapeAndOrientation) {
   const Mesh q = subdivide(mm::test::cube(), 2);
   const Mesh t = triangulate(q);

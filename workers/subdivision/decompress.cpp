@@ -30,8 +30,12 @@ long long subdivided_triangle_count(const Mesh& control, int levels) {
 int level_for_triangle_count(const Mesh& control, long long target_triangles, int max_level) {
   if (max_level < 0 || max_level > kMaxSubdivisionLevels)
     throw std::invalid_argument("max_level must be in [0, " + std::to_string(kMaxSubdivisionLevels) + "]");
-  for (int level = 0; level < max_level; ++level)
+  for (int level = 0; level < max_level; ++level) {
     if (subdivided_triangle_count(control, level) >= target_triangles) return level;
+    // A closed triangle mesh has about twice as many triangles as vertices: never pick a level
+    // that subdivide() would refuse for its size.
+    if (subdivided_triangle_count(control, level + 1) > 2 * kMaxRefinedVertices) return level;
+  }
   return max_level;
 }
 

@@ -12,7 +12,8 @@ long long triangle_count(const Mesh& mesh);
 long long subdivided_triangle_count(const Mesh& control, int levels);
 
 // Smallest level in [0, max_level] whose triangulated result has at least `target_triangles`
-// triangles (max_level when none does).
+// triangles (max_level when none does, or a lower level when the next one would exceed
+// about 2 * kMaxRefinedVertices triangles).
 int level_for_triangle_count(const Mesh& control, long long target_triangles, int max_level = 6);
 
 // The subdivided mesh (triangles and quads) at `levels`.

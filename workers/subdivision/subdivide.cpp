@@ -472,6 +472,12 @@ Level child_level(const Level& L, const std::vector<int>& fpoint, int nfp) {
 // generic sparse product, which dominated building the operator.
 SparseOperator compose(const SparseOperator& A, const SparseOperator& B) {
   SparseOperator C(A.rows(), B.cols());
+  // Reserve the exact nnz before deduplication is too much; half of it (rows of neighbouring
+  // stencils overlap heavily) avoids most regrowth copies.
+  long long bound = 0;
+  for (int r = 0; r < A.rows(); ++r)
+    for (SparseOperator::InnerIterator a(A, r); a; ++a) bound += B.outerIndexPtr()[a.col() + 1] - B.outerIndexPtr()[a.col()];
+  C.data().reserve(static_cast<Eigen::Index>(bound / 2 + A.rows()));
   RowBuilder row(static_cast<int>(B.cols()));
   for (int r = 0; r < A.rows(); ++r) {
     for (SparseOperator::InnerIterator a(A, r); a; ++a)

@@ -30,7 +30,7 @@ struct SubdivisionOperator {
 
 // Largest accepted number of steps and refined vertices (a guard against over-allocation).
 constexpr int kMaxSubdivisionLevels = 8;
-constexpr long long kMaxRefinedVertices = 20'000'000;
+constexpr long long kMaxRefinedVertices = 5'000'000;
 
 // Throws mm::InputError (source "subdivision control mesh") for out-of-range indices, faces with
 // fewer than 3 or repeated vertices, edges shared by more than two faces or traversed twice in the
