@@ -3,6 +3,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <random>
 
 #include "codec/codec_test_meshes.h"
 #include "codec/stream.h"
@@ -17,6 +18,13 @@ std::vector<std::pair<int, int>> sorted_creases(const mm::Mesh& m) {
   std::sort(c.begin(), c.end());
   c.erase(std::unique(c.begin(), c.end()), c.end());
   return c;
+}
+
+// Faces as a multiset of oriented cycles: each rotated to start at its smallest vertex, sorted.
+std::vector<std::vector<int>> canonical(std::vector<std::vector<int>> faces) {
+  for (auto& f : faces) std::rotate(f.begin(), std::min_element(f.begin(), f.end()), f.end());
+  std::sort(faces.begin(), faces.end());
+  return faces;
 }
 
 // Round trip: quantised values bit-exact, topology identical, re-encoding byte-identical.
@@ -36,7 +44,7 @@ void expect_round_trip(const mm::Mesh& m, int bits, const std::string& name) {
   // Exact equality of doubles: decode(encode(m)) == dequantize(quantize(m)).
   EXPECT_TRUE(d.mesh.points == mm::quantized_positions(m.points, bits));
   EXPECT_LE((d.mesh.points - m.points).cwiseAbs().maxCoeff(), 0.5 * q.step * (1 + 1e-9));
-  EXPECT_EQ(d.mesh.faces, m.faces);
+  EXPECT_EQ(canonical(d.mesh.faces), canonical(m.faces));  // same oriented faces
   EXPECT_EQ(d.mesh.creases, sorted_creases(m));
   std::vector<int> corners = m.corners;
   std::sort(corners.begin(), corners.end());
@@ -86,7 +94,24 @@ TEST(Stream, VertexOrderIsPreserved) {
   const auto db = mm::decode(mm::encode(b), "b");
   EXPECT_EQ(da.quantization.step, db.quantization.step);
   for (int i = 0; i < n; ++i) EXPECT_EQ(da.grid.row(i), db.grid.row(perm[i]));
-  EXPECT_EQ(db.mesh.faces, b.faces);
+  EXPECT_EQ(canonical(db.mesh.faces), canonical(b.faces));
+}
+
+TEST(Stream, FaceOrderAndRotationDoNotChangeTheBytes) {
+  // Face order carries no meaning, so the stream is canonical in it.
+  const mm::Mesh a = mm::test::wavy_grid(15, 10, 4);
+  mm::Mesh b = a;
+  std::mt19937 rng(11);
+  std::shuffle(b.faces.begin(), b.faces.end(), rng);
+  for (auto& f : b.faces) std::rotate(f.begin(), f.begin() + rng() % f.size(), f.end());
+  std::shuffle(b.creases.begin(), b.creases.end(), rng);
+  for (auto& [x, y] : b.creases) std::swap(x, y);
+  EXPECT_EQ(mm::encode(a), mm::encode(b));
+  // Orientation does matter: reversing one face changes the stream.
+  mm::Mesh c = a;
+  std::reverse(c.faces[3].begin(), c.faces[3].end());
+  EXPECT_NE(mm::encode(a), mm::encode(c));
+  EXPECT_EQ(canonical(mm::decode(mm::encode(c), "c").mesh.faces), canonical(c.faces));
 }
 
 TEST(Stream, EmptyAndSingleVertexMeshes) {
@@ -148,7 +173,7 @@ TEST(Stream, FilesAreWrittenAtomicallyAndReadBack) {
   const auto bytes = mm::encode(mm::test::crease_cube());
   mm::write_stream_file(path, bytes);
   EXPECT_EQ(mm::read_stream_file(path), bytes);
-  EXPECT_EQ(mm::decode_file(path).mesh.faces, mm::test::crease_cube().faces);
+  EXPECT_EQ(canonical(mm::decode_file(path).mesh.faces), canonical(mm::test::crease_cube().faces));
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir), {}), 1);
   EXPECT_THROW(mm::write_stream_file((dir / "missing" / "x.mmc").string(), bytes), mm::InputError);
   EXPECT_THROW(mm::read_stream_file((dir / "nope.mmc").string()), mm::InputError);

@@ -143,62 +143,73 @@ TEST(StreamHostile, HeaderFieldsOutOfRange) {
 }
 
 TEST(StreamHostile, PayloadContentsBehindAValidChecksum) {
-  // A 2x2-vertex single quad, hand-built payload: face-size bits, 4 indices, crease bits,
-  // coordinates (plain), so each field can be broken on its own.
+  // Hand-built payloads: face streams (sizes, symbols, ranks, plain indices), crease bits,
+  // coordinates (plain, 12 bits), so each field can be broken on its own.
   cd::Header h;
   h.flags = 0;  // plain coordinates
   h.bits = 12;
   h.vertices = 4;
   h.faces = 1;
-  auto payload = [](std::vector<std::uint8_t> face, std::uint8_t crease_bits,
-                    std::vector<std::uint8_t> coords) {
+  auto payload = [](std::vector<std::uint8_t> symbols, std::vector<std::uint8_t> ranks,
+                    std::vector<std::uint8_t> indices, std::uint8_t crease_bits, int vertices) {
     std::vector<std::uint8_t> raw;
-    raw.push_back(0x01);  // face 0 is a quad
-    for (std::uint8_t b : face) raw.push_back(b);
+    raw.push_back(static_cast<std::uint8_t>(symbols.size()));
+    raw.push_back(static_cast<std::uint8_t>(ranks.size()));
+    raw.push_back(static_cast<std::uint8_t>(indices.size()));
+    for (auto* part : {&symbols, &ranks, &indices})
+      for (std::uint8_t b : *part) raw.push_back(b);
     raw.push_back(crease_bits);
-    for (std::uint8_t b : coords) raw.push_back(b);
+    for (int i = 0; i < 3 * vertices; ++i) raw.push_back(0);
     return raw;
   };
-  const std::vector<std::uint8_t> coords(12, 0);
-  // Indices 0, 1, 2, 3: first relative to 0, the others zigzagged relative to the first.
-  const auto good = payload({0, 2, 4, 6}, 0, coords);
+  // One quad (0, 1, 2, 3) starting a component.
+  const auto good = payload({4}, {}, {0, 1, 2, 3}, 0, 4);
   const auto ok = mm::decode(cd::join(h, good, 0), "hand");
   EXPECT_EQ(ok.mesh.faces, (std::vector<std::vector<int>>{{0, 1, 2, 3}}));
   EXPECT_EQ(mm::decode(cd::join(h, good, 19), "hand").mesh.faces, ok.mesh.faces);
+  // Two quads: the second across gate (0, 1), its new vertices 4 and 5 escaped to plain indices.
+  cd::Header h2 = h;
+  h2.vertices = 6;
+  h2.faces = 2;
+  const auto two = mm::decode(cd::join(h2, payload({4, 2}, {0, 0}, {0, 1, 2, 3, 4, 5}, 0, 6), 0), "two");
+  EXPECT_EQ(two.mesh.faces, (std::vector<std::vector<int>>{{0, 1, 2, 3}, {1, 0, 4, 5}}));
 
-  EXPECT_REJECTED_WITH(cd::join(h, payload({0, 2, 4, 8}, 0, coords), 0), "vertex index 4 out of range");
-  EXPECT_REJECTED_WITH(cd::join(h, payload({0, 2, 4, 1}, 0, coords), 0), "vertex index -1 out of range");
-  EXPECT_REJECTED_WITH(cd::join(h, payload({0, 2, 2, 6}, 0, coords), 0), "repeats a vertex");
-  EXPECT_REJECTED_WITH(cd::join(h, payload({0, 2, 4, 6}, 0xF0, coords), 0), "padding bits");
-  EXPECT_REJECTED_WITH(cd::join(h, payload({0, 0x82, 0x00, 4, 6}, 0, coords), 0),
+  EXPECT_REJECTED_WITH(cd::join(h, payload({4}, {}, {0, 1, 2, 4}, 0, 4), 0), "vertex index 4 exceeds the limit 3");
+  EXPECT_REJECTED_WITH(cd::join(h, payload({4}, {}, {0, 1, 1, 3}, 0, 4), 0), "repeats a vertex");
+  EXPECT_REJECTED_WITH(cd::join(h, payload({2}, {}, {0, 1, 2, 3}, 0, 4), 0), "expected a component start");
+  EXPECT_REJECTED_WITH(cd::join(h, payload({4}, {}, {0, 1, 2, 3}, 0xF0, 4), 0), "padding bits");
+  EXPECT_REJECTED_WITH(cd::join(h, payload({4}, {}, {0, 0x81, 0x00, 2, 3}, 0, 4), 0),
                        "non-canonical varint");
+  EXPECT_REJECTED_WITH(cd::join(h, payload({4}, {}, {0, 1, 2, 3, 0}, 0, 4), 0), "trailing bytes in the face streams");
+  EXPECT_REJECTED_WITH(cd::join(h2, payload({4, 9}, {0, 0}, {0, 1, 2, 3, 4, 5}, 0, 6), 0), "gate symbol 9");
+  EXPECT_REJECTED_WITH(cd::join(h2, payload({4, 2}, {9, 0}, {0, 1, 2, 3, 5}, 0, 6), 0), "neighbour rank 9");
+  // Rank 2 of vertex 0 is vertex 3 (its neighbours became known as 1, 3): repeats a vertex? No:
+  // face (1, 0, 3, y) with y = rank 1 of vertex 1 = 0 repeats 0.
+  EXPECT_REJECTED_WITH(cd::join(h2, payload({4, 2}, {2, 1}, {0, 1, 2, 3}, 0, 6), 0), "repeats a vertex");
   {
-    auto raw = good;
-    raw[0] = 0x03;  // padding bit in the face-size bitset
-    EXPECT_REJECTED_WITH(cd::join(h, raw, 0), "padding bits");
-  }
-  {
-    auto c = coords;
-    c[5] = 0xFF;  // 0xFF 0x1F = 4095 would fit, but 0xFF 0x7F exceeds the 12-bit grid
-    c[6] = 0x7F;
-    c.pop_back();
-    EXPECT_REJECTED_WITH(cd::join(h, payload({0, 2, 4, 6}, 0, c), 0), "exceeds the limit");
+    auto c = std::vector<std::uint8_t>(12, 0);
+    auto raw = payload({4}, {}, {0, 1, 2, 3}, 0, 4);
+    raw[raw.size() - 7] = 0xFF;  // 0xFF 0x7F = 16383 exceeds the 12-bit grid
+    raw[raw.size() - 6] = 0x7F;
+    raw.pop_back();
+    EXPECT_REJECTED_WITH(cd::join(h, raw, 0), "exceeds the limit 4095");
   }
   {
     cd::Header hd = h;
     hd.flags = cd::kFlagDeltaCoords;  // a delta stepping below zero leaves the grid
-    auto c = coords;
-    c[1] = 1;  // zigzag 1 = -1
-    EXPECT_REJECTED_WITH(cd::join(hd, payload({0, 2, 4, 6}, 0, c), 0), "outside the 12-bit grid");
+    auto raw = good;
+    raw[raw.size() - 11] = 1;  // zigzag 1 = -1 for vertex 1's x
+    EXPECT_REJECTED_WITH(cd::join(hd, raw, 0), "outside the 12-bit grid");
   }
   {
     cd::Header hc = h;
     hc.creases = 1;
     hc.corners = 1;
-    auto raw = payload({0, 2, 4, 6}, 0x01, coords);
-    raw.insert(raw.begin() + 6, 0x04);  // corner gap 4 -> index 4, out of range
+    auto raw = payload({4}, {}, {0, 1, 2, 3}, 0x01, 4);
+    const size_t corner_at = raw.size() - 12;
+    raw.insert(raw.begin() + corner_at, 0x04);  // corner gap 4 -> index 4, out of range
     EXPECT_REJECTED_WITH(cd::join(hc, raw, 0), "corner index 4 out of range");
-    raw[6] = 0x03;
+    raw[corner_at] = 0x03;
     const auto d = mm::decode(cd::join(hc, raw, 0), "hand");
     EXPECT_EQ(d.mesh.corners, std::vector<int>{3});
     EXPECT_EQ(d.mesh.creases, (std::vector<std::pair<int, int>>{{0, 1}}));  // first sorted edge
@@ -221,7 +232,7 @@ TEST(StreamHostile, DecompressionBombIsRefusedBeforeAllocation) {
   cd::Header h;
   h.flags = cd::kFlagDeltaCoords;
   h.vertices = (8u << 20) / 3;
-  std::vector<std::uint8_t> raw(3u * h.vertices, 0);
+  std::vector<std::uint8_t> raw(3 + 3u * h.vertices, 0);  // empty face streams, zero deltas
   const auto s = cd::join(h, raw, 3);
   ASSERT_LT(s.size() * cd::kMaxExpansion, raw.size());
   EXPECT_REJECTED_WITH(s, "expands beyond the allowed ratio");

@@ -12,102 +12,18 @@
 #include <fstream>
 #include <limits>
 
+#include "codec/bytes.h"
+#include "codec/connectivity.h"
 #include "codec/stream_detail.h"
 
 namespace mm {
 namespace {
 
 using codec_detail::Header;
-
-// ---------------------------------------------------------------------------------------------
-// Little-endian primitives and LEB128 varints.
-
-class Writer {
- public:
-  std::vector<std::uint8_t> bytes;
-  void u8(std::uint8_t v) { bytes.push_back(v); }
-  void f64(double v) {
-    std::uint64_t u;
-    std::memcpy(&u, &v, 8);
-    for (int i = 0; i < 8; ++i) bytes.push_back(static_cast<std::uint8_t>(u >> (8 * i)));
-  }
-  void varint(std::uint64_t v) {
-    while (v >= 0x80) {
-      bytes.push_back(static_cast<std::uint8_t>(v | 0x80));
-      v >>= 7;
-    }
-    bytes.push_back(static_cast<std::uint8_t>(v));
-  }
-  void raw(const void* p, std::size_t n) {
-    const auto* b = static_cast<const std::uint8_t*>(p);
-    bytes.insert(bytes.end(), b, b + n);
-  }
-};
-
-// Bounds-checked reader: every read names what it was reading when the bytes run out.
-class Reader {
- public:
-  Reader(const std::uint8_t* data, std::size_t size, const std::string& source, const char* where)
-      : p_(data), end_(data + size), source_(source), where_(where) {}
-  std::size_t remaining() const { return static_cast<std::size_t>(end_ - p_); }
-  [[noreturn]] void fail(const std::string& reason) const {
-    throw InputError(source_, std::string(where_) + ": " + reason);
-  }
-  void need(std::size_t n, const char* what) const {
-    if (remaining() < n) fail(std::string("truncated while reading ") + what);
-  }
-  std::uint8_t u8(const char* what) {
-    need(1, what);
-    return *p_++;
-  }
-  double f64(const char* what) {
-    need(8, what);
-    std::uint64_t u = 0;
-    for (int i = 0; i < 8; ++i) u |= static_cast<std::uint64_t>(p_[i]) << (8 * i);
-    p_ += 8;
-    double v;
-    std::memcpy(&v, &u, 8);
-    return v;
-  }
-  // Canonical (shortest) LEB128 no larger than max.
-  std::uint64_t varint(const char* what, std::uint64_t max) {
-    std::uint64_t v = 0;
-    for (int shift = 0;; shift += 7) {
-      if (shift > 63) fail(std::string("overlong varint in ") + what);
-      const std::uint8_t b = u8(what);
-      const std::uint64_t part = static_cast<std::uint64_t>(b & 0x7F);
-      if (shift == 63 && part > 1) fail(std::string("varint overflow in ") + what);
-      v |= part << shift;
-      if (!(b & 0x80)) {
-        if (b == 0 && shift > 0) fail(std::string("non-canonical varint in ") + what);
-        break;
-      }
-    }
-    if (v > max)
-      fail(std::string(what) + " " + std::to_string(v) + " exceeds the limit " + std::to_string(max));
-    return v;
-  }
-  const std::uint8_t* bytes(std::size_t n, const char* what) {
-    need(n, what);
-    const std::uint8_t* r = p_;
-    p_ += n;
-    return r;
-  }
-  const std::uint8_t* position() const { return p_; }
-
- private:
-  const std::uint8_t* p_;
-  const std::uint8_t* end_;
-  const std::string& source_;
-  const char* where_;
-};
-
-std::uint64_t zigzag(std::int64_t v) {
-  return (static_cast<std::uint64_t>(v) << 1) ^ static_cast<std::uint64_t>(v >> 63);
-}
-std::int64_t unzigzag(std::uint64_t u) {
-  return static_cast<std::int64_t>(u >> 1) ^ -static_cast<std::int64_t>(u & 1);
-}
+using codec_detail::Reader;
+using codec_detail::Writer;
+using codec_detail::unzigzag;
+using codec_detail::zigzag;
 
 std::size_t bitset_bytes(std::size_t bits) { return (bits + 7) / 8; }
 
@@ -142,12 +58,13 @@ constexpr std::size_t kMaxCoordVarint = 4;
 constexpr std::size_t kMaxIndexVarint = 5;
 
 // Payload size bounds implied by the counts: every element takes at least its minimum encoding
-// and at most its maximum one.
+// and at most its maximum one. A face costs at least a symbol and a vertex byte, at most a
+// start symbol, three gate symbols and four 5-byte indices or ranks.
 std::pair<std::uint64_t, std::uint64_t> payload_bounds(const Header& h) {
   const std::uint64_t v = h.vertices, f = h.faces, c = h.corners, m = h.metadata_entries;
-  const std::uint64_t lo = 3 * v + bitset_bytes(f) + 3 * f + c + 2 * m + m;
-  const std::uint64_t hi = 3 * v * kMaxCoordVarint + bitset_bytes(f) + 4 * f * kMaxIndexVarint +
-                           bitset_bytes(4 * f) + c * kMaxIndexVarint +
+  const std::uint64_t lo = 3 + 2 * f + 3 * v + c + 3 * m;
+  const std::uint64_t hi = 3 * kMaxIndexVarint + f * (4 + 4 * 2 * kMaxIndexVarint) +
+                           bitset_bytes(4 * f) + 3 * v * kMaxCoordVarint + c * kMaxIndexVarint +
                            m * (2 * 2 + kMaxKeyBytes + kMaxValueBytes);
   return {lo, hi};
 }
@@ -193,17 +110,10 @@ std::vector<std::uint8_t> build_payload(const Mesh& mesh, const GridPoints& grid
                                         const std::map<std::string, std::string>& metadata,
                                         bool delta) {
   Writer w;
-  std::vector<bool> quads(mesh.faces.size());
-  for (std::size_t f = 0; f < mesh.faces.size(); ++f) quads[f] = mesh.faces[f].size() == 4;
-  write_bitset(w, quads);
-  // First index of a face relative to the previous face's first index; the others relative to
-  // their face's first: neighbouring faces share nearby indices, so the numbers stay small.
-  std::int64_t prev_first = 0;
-  for (const auto& face : mesh.faces) {
-    w.varint(zigzag(face[0] - prev_first));
-    for (std::size_t k = 1; k < face.size(); ++k) w.varint(zigzag(face[k] - face[0]));
-    prev_first = face[0];
-  }
+  const auto streams = codec_detail::encode_faces(mesh.faces, mesh.num_vertices(), nullptr);
+  for (const auto* part : {&streams.symbols, &streams.ranks, &streams.vertices}) w.varint(part->size());
+  for (const auto* part : {&streams.symbols, &streams.ranks, &streams.vertices})
+    w.raw(part->data(), part->size());
   write_bitset(w, crease_bits);
   int prev_corner = -1;
   for (int c : corners) {
@@ -407,24 +317,13 @@ DecodedStream decode(const std::uint8_t* data, std::size_t size, const std::stri
   DecodedStream out;
   out.version = h.version;
   Mesh& mesh = out.mesh;
-  const std::vector<bool> quads = read_bitset(in, h.faces, "face sizes");
-  mesh.faces.resize(h.faces);
-  std::int64_t prev_first = 0;
-  for (std::uint32_t f = 0; f < h.faces; ++f) {
-    auto& face = mesh.faces[f];
-    face.resize(quads[f] ? 4 : 3);
-    for (std::size_t k = 0; k < face.size(); ++k) {
-      const std::int64_t base = k == 0 ? prev_first : face[0];
-      const std::int64_t v = base + unzigzag(in.varint("face index", 0xFFFFFFFFull));
-      if (v < 0 || v >= n)
-        in.fail("face " + std::to_string(f) + " has vertex index " + std::to_string(v) +
-                " out of range (" + std::to_string(n) + " vertices)");
-      face[k] = static_cast<int>(v);
-      for (std::size_t j = 0; j < k; ++j)
-        if (face[j] == face[k]) in.fail("face " + std::to_string(f) + " repeats a vertex");
-    }
-    prev_first = face[0];
-  }
+  std::size_t sizes[3];
+  const char* names[3] = {"face symbol bytes", "face rank bytes", "face index bytes"};
+  for (int k = 0; k < 3; ++k) sizes[k] = in.varint(names[k], parts.raw.size());
+  const std::uint8_t* starts[3];
+  for (int k = 0; k < 3; ++k) starts[k] = in.bytes(sizes[k], names[k]);
+  mesh.faces = codec_detail::decode_faces(starts[0], sizes[0], starts[1], sizes[1], starts[2],
+                                          sizes[2], h.faces, n, source);
 
   const auto edges = unique_edges(mesh);
   const std::vector<bool> crease_bits = read_bitset(in, edges.size(), "crease flags");
