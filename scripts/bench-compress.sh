@@ -1,0 +1,119 @@
+#!/usr/bin/env bash
+# Compression benchmark (issue 3 targets): for each shared CAD mesh, compress with meshmark,
+# measure the stream size, the time, and the symmetric Hausdorff / RMS distance between the
+# original and the stream decoded at its fitted level (meshmark compare, the project's quality
+# code); then find the smallest Google Draco stream (draco_encoder -cl 10, searching -qp) whose
+# decoded mesh has a Hausdorff distance no larger than ours, measured by the same compare command.
+# Prints a table per mesh and the median size ratio Draco / meshmark; writes fandisk pictures.
+#
+# Usage: scripts/bench-compress.sh [OUT_DIR]     (env: MESHMARK=path/to/meshmark, MESHES=dir,
+#        MAX_VERTICES=1000, TOLERANCE=0.005, BITS=12, LIST="fandisk.off ...")
+set -euo pipefail
+cd "$(dirname "$0")/.."
+MESHMARK=${MESHMARK:-build/daemon/meshmark}
+MESHES=${MESHES:-../shared/data/meshes}
+OUT=${1:-build/bench-compress}
+MAX_VERTICES=${MAX_VERTICES:-1000}
+TOLERANCE=${TOLERANCE:-0.005}
+BITS=${BITS:-12}
+LIST=${LIST:-"fandisk.off bracket-3.stl blade.stl rocker.stl abc5.stl abc6.stl abc7.stl abc8.stl abc9.stl"}
+for tool in "$MESHMARK" draco_encoder draco_decoder jq python3; do
+  command -v "$tool" >/dev/null || [ -x "$tool" ] || { echo "bench-compress: $tool not found" >&2; exit 2; }
+done
+mkdir -p "$OUT"
+
+# Draco reads PLY/OBJ/STL; give it the same welded, triangulated mesh meshmark reads.
+to_ply() {
+  python3 - "$1" "$2" <<'PY'
+import struct, sys
+src, dst = sys.argv[1], sys.argv[2]
+pts, faces = [], []
+if src.lower().endswith('.off'):
+    words = []
+    for line in open(src):
+        line = line.split('#')[0]
+        words += line.split()
+    assert words[0] == 'OFF'
+    nv, nf = int(words[1]), int(words[2])
+    w = 4
+    for i in range(nv):
+        pts.append(tuple(float(x) for x in words[w:w + 3])); w += 3
+    for i in range(nf):
+        k = int(words[w]); idx = [int(x) for x in words[w + 1:w + 1 + k]]; w += 1 + k
+        for j in range(1, k - 1): faces.append((idx[0], idx[j], idx[j + 1]))
+else:  # STL: binary or ASCII, exact duplicates welded
+    data = open(src, 'rb').read()
+    tris = []
+    n = struct.unpack_from('<I', data, 80)[0] if len(data) >= 84 else 0
+    if len(data) == 84 + 50 * n:
+        for i in range(n):
+            v = struct.unpack_from('<12f', data, 84 + 50 * i)
+            tris.append((v[3:6], v[6:9], v[9:12]))
+    else:
+        vs = [tuple(float(x) for x in l.split()[1:4]) for l in data.decode().splitlines() if l.strip().startswith('vertex')]
+        tris = [vs[i:i + 3] for i in range(0, len(vs), 3)]
+    index = {}
+    for t in tris:
+        f = []
+        for p in t:
+            if p not in index: index[p] = len(pts); pts.append(p)
+            f.append(index[p])
+        if len(set(f)) == 3: faces.append(tuple(f))
+with open(dst, 'w') as o:
+    o.write('ply\nformat ascii 1.0\nelement vertex %d\nproperty float x\nproperty float y\nproperty float z\n' % len(pts))
+    o.write('element face %d\nproperty list uchar int vertex_indices\nend_header\n' % len(faces))
+    for p in pts: o.write('%.9g %.9g %.9g\n' % p)
+    for f in faces: o.write('3 %d %d %d\n' % f)
+PY
+}
+
+printf '%-14s %7s %8s %7s %9s %9s %7s | %5s %9s %9s | %7s\n' mesh in_vert ctrl_v bytes hausdorff rms time_s \
+  qp draco_B draco_H ratio
+ratios=()
+for name in $LIST; do
+  in="$MESHES/$name"
+  base="${name%.*}"
+  mmc="$OUT/$base.mmc"
+  summary=$("$MESHMARK" compress "$in" "$mmc" --tolerance "$TOLERANCE" --max-vertices "$MAX_VERTICES" \
+            --bits "$BITS" --json)
+  bytes=$(stat -c %s "$mmc")
+  secs=$(jq -r '.seconds' <<<"$summary")
+  ctrl=$(jq -r '.control_vertices' <<<"$summary")
+  nin=$(jq -r '.input_vertices' <<<"$summary")
+  cmp=$("$MESHMARK" compare "$in" "$mmc" --json)
+  h=$(jq -r '.hausdorff' <<<"$cmp")
+  rms=$(jq -r '.rms' <<<"$cmp")
+
+  ply="$OUT/$base.ply"
+  to_ply "$in" "$ply"
+  best_qp=-; best_bytes=-; best_h=-
+  for qp in $(seq 4 20); do
+    drc="$OUT/$base.qp$qp.drc"
+    draco_encoder -i "$ply" -o "$drc" -cl 10 -qp "$qp" >/dev/null
+    draco_decoder -i "$drc" -o "$OUT/$base.qp$qp.ply" >/dev/null
+    dh=$("$MESHMARK" compare "$in" "$OUT/$base.qp$qp.ply" --json | jq -r '.hausdorff')
+    if python3 -c "import sys; sys.exit(0 if $dh <= $h else 1)"; then
+      best_qp=$qp; best_bytes=$(stat -c %s "$drc"); best_h=$dh
+      break
+    fi
+  done
+  ratio=-
+  if [ "$best_bytes" != "-" ]; then
+    ratio=$(python3 -c "print('%.2f' % ($best_bytes / $bytes))")
+    ratios+=("$ratio")
+  fi
+  printf '%-14s %7d %8d %7d %8.4f%% %8.4f%% %7.2f | %5s %9s %9s | %7s\n' "$base" "$nin" "$ctrl" "$bytes" \
+    "$(python3 -c "print(100*$h)")" "$(python3 -c "print(100*$rms)")" "$secs" "$best_qp" "$best_bytes" \
+    "$( [ "$best_h" = - ] && echo - || python3 -c "print('%.4f%%' % (100*$best_h))")" "$ratio"
+done
+if [ ${#ratios[@]} -gt 0 ]; then
+  python3 -c "import statistics,sys; r=[float(x) for x in sys.argv[1:]]; print('median size ratio Draco/meshmark at equal Hausdorff: %.2f over %d meshes (target >= 5)' % (statistics.median(r), len(r)))" "${ratios[@]}"
+fi
+
+# Pictures of fandisk: original, control polyhedron with creases, decoded surface.
+if [ -f "$OUT/fandisk.mmc" ] && "$MESHMARK" render --help >/dev/null 2>&1; then
+  "$MESHMARK" render "$MESHES/fandisk.off" "$OUT/fandisk-original.png"
+  "$MESHMARK" render "$OUT/fandisk.mmc" "$OUT/fandisk-control.png" --control
+  "$MESHMARK" render "$OUT/fandisk.mmc" "$OUT/fandisk-decoded.png"
+  echo "pictures: $OUT/fandisk-original.png $OUT/fandisk-control.png $OUT/fandisk-decoded.png"
+fi
