@@ -105,6 +105,9 @@ TEST(StreamHostile, HeaderFieldsOutOfRange) {
   h.flags |= 0x80;
   EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "unknown flags");
   h = parts.header;
+  h.flags = (h.flags & cd::kFlagZstd) | cd::kPredictionMask;
+  EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "unknown coordinate prediction 3");
+  h = parts.header;
   h.bits = 31;
   EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "quantisation bits 31");
   h = parts.header;
@@ -196,10 +199,18 @@ TEST(StreamHostile, PayloadContentsBehindAValidChecksum) {
   }
   {
     cd::Header hd = h;
-    hd.flags = cd::kFlagDeltaCoords;  // a delta stepping below zero leaves the grid
+    hd.flags = 1 << cd::kPredictionShift;  // a delta from the previous vertex stepping below zero
     auto raw = good;
     raw[raw.size() - 11] = 1;  // zigzag 1 = -1 for vertex 1's x
     EXPECT_REJECTED_WITH(cd::join(hd, raw, 0), "outside the 12-bit grid");
+    // Neighbour prediction: vertex 1's only lower neighbour is vertex 0 (at 0), same failure.
+    hd.flags = 2 << cd::kPredictionShift;
+    EXPECT_REJECTED_WITH(cd::join(hd, raw, 0), "outside the 12-bit grid");
+    raw[raw.size() - 11] = 2;  // zigzag 2 = +1 for vertex 1
+    const auto d = mm::decode(cd::join(hd, raw, 0), "pred");
+    EXPECT_EQ(d.grid(1, 0), 1);
+    EXPECT_EQ(d.grid(2, 0), 1);  // lower neighbour 1 predicts 1, residual 0
+    EXPECT_EQ(d.grid(3, 0), 1);  // lower neighbours 0 and 2: mean 0.5 rounds half up to 1
   }
   {
     cd::Header hc = h;
@@ -230,7 +241,7 @@ TEST(StreamHostile, DecompressionBombIsRefusedBeforeAllocation) {
   // 8 MiB of zeros is a valid payload for ~2.8M vertices at one spot: but it compresses far
   // beyond any real control polyhedron, so the ratio limit refuses it.
   cd::Header h;
-  h.flags = cd::kFlagDeltaCoords;
+  h.flags = 1 << cd::kPredictionShift;  // deltas from the previous vertex
   h.vertices = (8u << 20) / 3;
   std::vector<std::uint8_t> raw(3 + 3u * h.vertices, 0);  // empty face streams, zero deltas
   const auto s = cd::join(h, raw, 3);

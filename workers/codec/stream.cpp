@@ -14,6 +14,7 @@
 
 #include "codec/bytes.h"
 #include "codec/connectivity.h"
+#include "codec/prediction.h"
 #include "codec/stream_detail.h"
 
 namespace mm {
@@ -103,12 +104,13 @@ void validate_for_encoding(const Mesh& mesh, const CodecParams& params) {
   }
 }
 
-// The payload, with coordinates either delta-coded from the previous vertex or stored as is.
+// The payload, with coordinates coded against the given prediction.
 std::vector<std::uint8_t> build_payload(const Mesh& mesh, const GridPoints& grid,
                                         const std::vector<bool>& crease_bits,
                                         const std::vector<int>& corners,
                                         const std::map<std::string, std::string>& metadata,
-                                        bool delta) {
+                                        codec_detail::Prediction mode,
+                                        const codec_detail::LowerNeighbours& lower) {
   Writer w;
   const auto streams = codec_detail::encode_faces(mesh.faces, mesh.num_vertices(), nullptr);
   for (const auto* part : {&streams.symbols, &streams.ranks, &streams.vertices}) w.varint(part->size());
@@ -120,14 +122,12 @@ std::vector<std::uint8_t> build_payload(const Mesh& mesh, const GridPoints& grid
     w.varint(static_cast<std::uint64_t>(c - prev_corner - 1));
     prev_corner = c;
   }
-  // One axis after another: each axis's deltas have their own statistics.
-  for (int a = 0; a < 3; ++a) {
-    std::int64_t prev = 0;
+  // One axis after another: each axis's residuals have their own statistics.
+  for (int a = 0; a < 3; ++a)
     for (Eigen::Index i = 0; i < grid.rows(); ++i) {
-      w.varint(delta ? zigzag(grid(i, a) - prev) : static_cast<std::uint64_t>(grid(i, a)));
-      prev = grid(i, a);
+      const std::int64_t r = grid(i, a) - codec_detail::predict(grid, static_cast<int>(i), a, mode, lower);
+      w.varint(mode == codec_detail::Prediction::plain ? static_cast<std::uint64_t>(r) : zigzag(r));
     }
-  }
   for (const auto& [k, v] : metadata) {
     w.varint(k.size());
     w.raw(k.data(), k.size());
@@ -294,12 +294,14 @@ std::vector<std::uint8_t> encode(const Mesh& mesh, const CodecParams& params) {
   h.corners = static_cast<std::uint32_t>(corners.size());
   h.metadata_entries = static_cast<std::uint32_t>(params.metadata.size());
 
-  // Smallest of: delta or plain coordinates, compressed or stored. Ties go to the first.
+  // Smallest of the coordinate predictions, compressed or stored. Ties go to the first tried.
+  const auto lower = codec_detail::lower_neighbours(edges, mesh.num_vertices());
   std::vector<std::uint8_t> best;
-  for (bool delta : {true, false}) {
+  for (auto mode : {codec_detail::Prediction::neighbours, codec_detail::Prediction::previous,
+                    codec_detail::Prediction::plain}) {
     Header hd = h;
-    hd.flags = delta ? codec_detail::kFlagDeltaCoords : 0;
-    const auto raw = build_payload(mesh, grid, crease_bits, corners, params.metadata, delta);
+    hd.flags = static_cast<std::uint8_t>(static_cast<int>(mode) << codec_detail::kPredictionShift);
+    const auto raw = build_payload(mesh, grid, crease_bits, corners, params.metadata, mode, lower);
     for (int level : {params.zstd_level, 0}) {
       auto s = codec_detail::join(hd, raw, level);
       if (best.empty() || s.size() < best.size()) best = std::move(s);
@@ -344,20 +346,22 @@ DecodedStream decode(const std::uint8_t* data, std::size_t size, const std::stri
   q.bits = h.bits;
   q.offset = h.offset;
   q.step = h.step;
-  const bool delta = h.flags & codec_detail::kFlagDeltaCoords;
+  const int mode_bits = (h.flags & codec_detail::kPredictionMask) >> codec_detail::kPredictionShift;
+  if (mode_bits > 2) in.fail("unknown coordinate prediction " + std::to_string(mode_bits));
+  const auto mode = static_cast<codec_detail::Prediction>(mode_bits);
+  const auto lower = codec_detail::lower_neighbours(edges, n);
+  const bool plain = mode == codec_detail::Prediction::plain;
   out.grid.resize(n, 3);
-  for (int a = 0; a < 3; ++a) {
-    std::int64_t prev = 0;
+  for (int a = 0; a < 3; ++a)
     for (int i = 0; i < n; ++i) {
-      const std::uint64_t u = in.varint("coordinate", delta ? 2ull * q.max_value() : q.max_value());
-      const std::int64_t v = delta ? prev + unzigzag(u) : static_cast<std::int64_t>(u);
+      const std::uint64_t u = in.varint("coordinate", plain ? q.max_value() : 2ull * q.max_value());
+      const std::int64_t v = plain ? static_cast<std::int64_t>(u)
+                                   : codec_detail::predict(out.grid, i, a, mode, lower) + unzigzag(u);
       if (v < 0 || v > q.max_value())
         in.fail("vertex " + std::to_string(i) + " coordinate outside the " +
                 std::to_string(q.bits) + "-bit grid");
       out.grid(i, a) = static_cast<std::int32_t>(v);
-      prev = v;
     }
-  }
   mesh.points = dequantize(out.grid, q);
 
   std::string prev_key;

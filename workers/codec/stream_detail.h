@@ -12,8 +12,10 @@ namespace mm::codec_detail {
 constexpr std::uint8_t kMagic[4] = {'M', 'M', 'C', 'S'};
 constexpr std::uint8_t kVersion = 1;
 constexpr std::uint8_t kFlagZstd = 1;         // payload is one zstd frame (else stored as is)
-constexpr std::uint8_t kFlagDeltaCoords = 2;  // coordinates are deltas from the previous vertex
-constexpr std::uint8_t kKnownFlags = kFlagZstd | kFlagDeltaCoords;
+// Bits 1-2: coordinate prediction (codec/prediction.h: 0 plain, 1 previous vertex, 2 neighbours).
+constexpr int kPredictionShift = 1;
+constexpr std::uint8_t kPredictionMask = 6;
+constexpr std::uint8_t kKnownFlags = kFlagZstd | kPredictionMask;
 constexpr std::size_t kFixedHeaderBytes = 39;  // magic .. step
 constexpr std::size_t kChecksumBytes = 4;
 // A real payload never compresses better than this; a frame that claims more is refused
