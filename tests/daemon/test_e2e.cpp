@@ -252,7 +252,7 @@ TEST_F(E2E, ProtectsTwoCustomersAndTracesTheLeak) {
 
 TEST_F(E2E, KillNineMidBatchThenRestartCompletesEveryJobExactlyOnce) {
   MM_REQUIRE_SHARED_MESHES();
-  write_config({{"lease_seconds", 4}, {"heartbeat_seconds", 1}});
+  write_config({{"lease_seconds", 5}, {"heartbeat_seconds", 2}});
   // Four customers x four parts: 16 protect jobs; fandisk's basis makes some of them slow enough
   // to be caught running.
   auto st = store();
@@ -273,6 +273,12 @@ TEST_F(E2E, KillNineMidBatchThenRestartCompletesEveryJobExactlyOnce) {
   }
   auto mid = st->counts();
   EXPECT_LT(mid.completed, 16);
+  // The jobs the killed process held stay "running" until their lease expires.
+  mm::store::JobFilter running;
+  running.state = mm::store::JobState::running;
+  std::vector<std::int64_t> killed;
+  for (const auto& j : st->list_jobs(running)) killed.push_back(j.id);
+  EXPECT_FALSE(killed.empty());
   {
     Daemon d = start();
     ASSERT_TRUE(wait_for([&] {
@@ -286,6 +292,7 @@ TEST_F(E2E, KillNineMidBatchThenRestartCompletesEveryJobExactlyOnce) {
   auto jobs = st->list_jobs({});
   ASSERT_EQ(jobs.size(), 16u);
   for (const auto& j : jobs) EXPECT_EQ(j.state, mm::store::JobState::completed) << j.id;
+  for (auto id : killed) EXPECT_GE(st->get_job(id)->attempt, 2) << "job " << id << " was reclaimed after its lease";
   auto copies = st->list_copies();
   ASSERT_EQ(copies.size(), 16u);
   std::set<std::pair<std::int64_t, std::int64_t>> pairs;
