@@ -97,7 +97,8 @@ class Body {
     return 0;
   }
   bool at_end() {
-    if (format_ != 0) return pos_ == data_.size();
+    if (format_ != 0)  // some writers end binary files with a newline
+      return data_.find_first_not_of(" \t\r\n", pos_) == std::string_view::npos;
     return tok_.next().empty();
   }
 

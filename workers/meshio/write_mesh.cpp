@@ -176,6 +176,12 @@ void atomic_write(const std::string& path, const std::string& bytes) {
     ::unlink(name.data());
     throw InputError(path, std::string("rename failed: ") + std::strerror(err));
   }
+  // Make the rename itself durable; a failure here cannot un-write the file, so it is ignored.
+  int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
+  if (dfd >= 0) {
+    ::fsync(dfd);
+    ::close(dfd);
+  }
 }
 
 }  // namespace
