@@ -9,6 +9,7 @@
 #include "common/shared_meshes.h"
 #include "meshio/read_mesh.h"
 #include "meshio/repair_manifold.h"
+#include "meshio/temp_dir.h"
 
 namespace {
 
@@ -87,9 +88,7 @@ TEST(ReadMesh, OffKeepsFullDoublePrecisionAndOrder) {
 }
 
 std::string temp_path(const std::string& name) {
-  auto dir = std::filesystem::temp_directory_path() / ("mm_meshio_test_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  return (dir / name).string();
+  return (mm::test::meshio_temp_dir() / name).string();
 }
 
 void write_text(const std::string& path, const std::string& text) {

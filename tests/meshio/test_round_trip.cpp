@@ -7,15 +7,14 @@
 
 #include "common/shared_meshes.h"
 #include "meshio/read_mesh.h"
+#include "meshio/temp_dir.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 
 fs::path temp_dir() {
-  auto dir = fs::temp_directory_path() / ("mm_roundtrip_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  return dir;
+  return mm::test::meshio_temp_dir();
 }
 
 // A mixed quad/triangle strip with coordinates no float can hold exactly.
