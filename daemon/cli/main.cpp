@@ -7,6 +7,7 @@ int main(int argc, char** argv) {
   CLI::App app{"meshmark: compress CAD meshes, watermark them per customer, trace leaked copies"};
   app.require_subcommand(1);
   mm::cli::add_offline_commands(app);
+  mm::cli::add_compress_commands(app);
   mm::cli::add_store_commands(app);
   try {
     app.parse(argc, argv);

@@ -1,0 +1,234 @@
+// compress, decompress, compare: the compression half of the product, on files only.
+//   meshmark compress IN OUT.mmc    fit a subdivision control polyhedron and encode it
+//   meshmark decompress IN.mmc OUT  subdivide a stream to a level (or a triangle count), write a mesh
+//   meshmark compare A B            symmetric Hausdorff / RMS / mean distance relative to A's diagonal
+//   meshmark render IN OUT.png      a picture of a mesh, a decoded stream or its control polyhedron
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "cli/commands.h"
+#include "codec/stream.h"
+#include "fitting/compress.h"
+#include "meshio/read_mesh.h"
+#include "quality/surface_distance.h"
+#include "render/render_mesh.h"
+#include "subdivision/decompress.h"
+
+namespace mm::cli {
+namespace {
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+  if (s.size() < suffix.size()) return false;
+  for (size_t i = 0; i < suffix.size(); ++i)
+    if (std::tolower(static_cast<unsigned char>(s[s.size() - suffix.size() + i])) != suffix[i])
+      return false;
+  return true;
+}
+
+// The subdivision level a stream was fitted at (stored in its metadata by `compress`).
+int stream_levels(const DecodedStream& s, int fallback) {
+  auto it = s.metadata.find("levels");
+  if (it == s.metadata.end()) return fallback;
+  try {
+    int l = std::stoi(it->second);
+    return l >= 0 && l <= 6 ? l : fallback;
+  } catch (const std::exception&) {
+    return fallback;
+  }
+}
+
+// A mesh file as is, or a .mmc stream subdivided to `level` (its own fitted level when < 0).
+Mesh load_surface(const std::string& path, int level) {
+  if (!ends_with(path, ".mmc")) return read_mesh(path);
+  auto s = decode_file(path);
+  return decompress_to_level(s.mesh, level >= 0 ? level : stream_levels(s, 3));
+}
+
+char fmt_buf[64];
+const char* pct(double x) {
+  std::snprintf(fmt_buf, sizeof fmt_buf, "%.4f%%", 100 * x);
+  return fmt_buf;
+}
+
+}  // namespace
+
+void add_compress_commands(CLI::App& app) {
+  {
+    struct Args {
+      std::string in, out;
+      CompressOptions o;
+      int bits = 12;
+      bool json = false;
+    };
+    auto a = std::make_shared<Args>();
+    auto* c = app.add_subcommand(
+        "compress", "Fit a sharp-featured subdivision control polyhedron to a mesh, write a .mmc stream");
+    c->add_option("input", a->in, "mesh file (STL, OBJ, OFF, PLY)")->required();
+    c->add_option("output", a->out, "stream file to write (.mmc)")->required();
+    c->add_option("--tolerance", a->o.tolerance,
+                  "target symmetric Hausdorff distance relative to the bounding box diagonal")
+        ->capture_default_str()->check(CLI::Range(1e-6, 0.5));
+    c->add_option("--max-vertices", a->o.max_vertices, "control vertex budget")
+        ->capture_default_str()->check(CLI::Range(4, 10000000));
+    c->add_option("--levels", a->o.levels, "subdivision levels the fit is measured at")
+        ->capture_default_str()->check(CLI::Range(1, 5));
+    c->add_option("--angle", a->o.angle_degrees, "dihedral angle (degrees) above which an edge is a crease")
+        ->capture_default_str()->check(CLI::Range(1.0, 179.0));
+    c->add_option("--bits", a->bits, "quantisation bits per coordinate")
+        ->capture_default_str()->check(CLI::Range(kMinQuantBits, kMaxQuantBits));
+    c->add_flag("--json", a->json, "print the summary as JSON");
+    c->callback([a] {
+      Mesh mesh = read_mesh(a->in);
+      auto t0 = std::chrono::steady_clock::now();
+      CompressResult r = compress(mesh, a->o, a->in);
+      double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      CodecParams params;
+      params.quant_bits = a->bits;
+      params.metadata["levels"] = std::to_string(r.levels);
+      auto bytes = encode(r.control, params);
+      write_stream_file(a->out, bytes);
+      // The error a receiver sees: decoded (quantised) control mesh, subdivided.
+      auto decoded = decode(bytes, a->out);
+      auto d = surface_distance(mesh, decompress_to_level(decoded.mesh, r.levels));
+      nlohmann::json j{{"input", a->in},
+                       {"output", a->out},
+                       {"input_vertices", mesh.num_vertices()},
+                       {"input_faces", mesh.num_faces()},
+                       {"control_vertices", r.control.num_vertices()},
+                       {"control_faces", r.control.num_faces()},
+                       {"creases", r.control.creases.size()},
+                       {"corners", r.control.corners.size()},
+                       {"levels", r.levels},
+                       {"bits", a->bits},
+                       {"stream_bytes", bytes.size()},
+                       {"hausdorff", d.hausdorff_relative()},
+                       {"rms", d.rms_relative()},
+                       {"mean", d.mean_relative()},
+                       {"tolerance", a->o.tolerance},
+                       {"tolerance_met", d.hausdorff_relative() <= a->o.tolerance},
+                       {"rounds", r.rounds},
+                       {"seconds", seconds}};
+      if (a->json) {
+        std::cout << j.dump(2) << "\n";
+        return;
+      }
+      std::cout << a->out << ": " << bytes.size() << " bytes, " << r.control.num_vertices()
+                << " control vertices, " << r.control.num_faces() << " faces, "
+                << r.control.creases.size() << " creases, " << r.control.corners.size()
+                << " corners (from " << mesh.num_vertices() << " vertices)\n";
+      std::cout << "level " << r.levels << " vs input: Hausdorff " << pct(d.hausdorff_relative());
+      std::cout << ", RMS " << pct(d.rms_relative());
+      std::cout << ", mean " << pct(d.mean_relative()) << " of the diagonal";
+      std::cout << (d.hausdorff_relative() <= a->o.tolerance ? "" : " (tolerance not reached within the budget)")
+                << "; " << seconds << " s\n";
+    });
+  }
+  {
+    struct Args {
+      std::string in, out;
+      int level = -1;
+      long long faces = 0;
+    };
+    auto a = std::make_shared<Args>();
+    auto* c = app.add_subcommand("decompress", "Subdivide a .mmc stream and write the surface as a mesh");
+    c->add_option("input", a->in, "stream file (.mmc)")->required();
+    c->add_option("output", a->out, "mesh file to write (STL, OBJ, OFF, PLY)")->required();
+    auto* lvl = c->add_option("--level", a->level, "subdivision level (default: the level it was fitted at)")
+                    ->check(CLI::Range(0, 6));
+    c->add_option("--faces", a->faces, "smallest level with at least this many triangles (at most level 6)")
+        ->check(CLI::Range(1LL, 1LL << 40))
+        ->excludes(lvl);
+    c->callback([a] {
+      auto s = decode_file(a->in);
+      Mesh m = a->faces > 0 ? decompress_to_triangle_count(s.mesh, a->faces)
+                            : decompress_to_level(s.mesh, a->level >= 0 ? a->level : stream_levels(s, 3));
+      if (ends_with(a->out, ".stl")) m = triangulate(m);
+      write_mesh(m, a->out);
+      std::cout << a->out << ": " << m.num_vertices() << " vertices, " << m.num_faces() << " faces\n";
+    });
+  }
+  {
+    struct Args {
+      std::string a, b;
+      int level = -1;
+      bool json = false;
+    };
+    auto a = std::make_shared<Args>();
+    auto* c = app.add_subcommand(
+        "compare", "Symmetric Hausdorff, RMS and mean surface distance between two meshes, "
+                   "relative to the first one's bounding box diagonal (.mmc streams are subdivided)");
+    c->add_option("a", a->a, "reference mesh or stream")->required();
+    c->add_option("b", a->b, "other mesh or stream")->required();
+    c->add_option("--level", a->level, "level for .mmc inputs (default: the level they were fitted at)")
+        ->check(CLI::Range(0, 6));
+    c->add_flag("--json", a->json, "print JSON");
+    c->callback([a] {
+      Mesh ma = load_surface(a->a, a->level), mb = load_surface(a->b, a->level);
+      auto d = surface_distance(ma, mb);
+      if (a->json) {
+        nlohmann::json j{{"a", a->a},
+                         {"b", a->b},
+                         {"diagonal", d.diagonal},
+                         {"hausdorff", d.hausdorff_relative()},
+                         {"rms", d.rms_relative()},
+                         {"mean", d.mean_relative()},
+                         {"hausdorff_abs", d.hausdorff},
+                         {"rms_abs", d.rms},
+                         {"mean_abs", d.mean},
+                         {"a_to_b", {{"max", d.a_to_b.max / d.diagonal}, {"rms", d.a_to_b.rms / d.diagonal},
+                                     {"samples", d.a_to_b.samples}}},
+                         {"b_to_a", {{"max", d.b_to_a.max / d.diagonal}, {"rms", d.b_to_a.rms / d.diagonal},
+                                     {"samples", d.b_to_a.samples}}}};
+        std::cout << j.dump(2) << "\n";
+        return;
+      }
+      std::cout << "Hausdorff " << pct(d.hausdorff_relative());
+      std::cout << ", RMS " << pct(d.rms_relative());
+      std::cout << ", mean " << pct(d.mean_relative()) << " of the diagonal (" << d.diagonal << ")\n";
+    });
+  }
+  {
+    struct Args {
+      std::string in, out;
+      bool control = false, wire = false;
+      int level = -1, width = 800, height = 600;
+      double azimuth = 35, elevation = 25;
+    };
+    auto a = std::make_shared<Args>();
+    auto* c = app.add_subcommand("render", "Write a PNG picture of a mesh or .mmc stream (creases in red)");
+    c->add_option("input", a->in, "mesh file or .mmc stream")->required();
+    c->add_option("output", a->out, "PNG file to write")->required();
+    c->add_flag("--control", a->control, "draw a stream's control polyhedron (with its edges) instead of its surface");
+    c->add_flag("--wire", a->wire, "draw every polygon edge");
+    c->add_option("--level", a->level, "level for .mmc surfaces (default: the fitted level)")->check(CLI::Range(0, 6));
+    c->add_option("--azimuth", a->azimuth, "view direction around the up axis, degrees")->capture_default_str();
+    c->add_option("--elevation", a->elevation, "view direction above the horizon, degrees")->capture_default_str();
+    c->add_option("--width", a->width)->capture_default_str()->check(CLI::Range(16, 8192));
+    c->add_option("--height", a->height)->capture_default_str()->check(CLI::Range(16, 8192));
+    c->callback([a] {
+      Mesh m;
+      if (ends_with(a->in, ".mmc") && a->control) {
+        m = decode_file(a->in).mesh;
+      } else {
+        m = load_surface(a->in, a->level);
+        m.creases.clear();  // a subdivided surface carries many crease edges; draw the shape only
+      }
+      Camera cam;
+      cam.azimuth_deg = a->azimuth;
+      cam.elevation_deg = a->elevation;
+      RenderOptions o;
+      o.width = a->width;
+      o.height = a->height;
+      o.draw_wire = a->wire || a->control;
+      o.draw_corners = a->control;
+      render_mesh(m, cam, o).write_png(a->out);
+      std::cout << a->out << "\n";
+    });
+  }
+}
+
+}  // namespace mm::cli
