@@ -297,5 +297,47 @@ TEST(Subdivision, RejectsBadInput) {
   EXPECT_THROW(apply_subdivision(op, Points(3, 3)), std::invalid_argument);
 }
 
+TEST(Subdivision, RandomTopologyNeverCrashes) {
+  // Seeded random polygon soups (bad indices, repeats, non-manifold edges, flips, creases on
+  // non-edges): every one is either subdivided into a watertight-or-open valid mesh or rejected
+  // with InputError. Run under the Asan build to catch memory errors.
+  std::mt19937 rng(12345);
+  int accepted = 0, rejected = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const int nv = 3 + static_cast<int>(rng() % 12);
+    Mesh m;
+    m.points = Points::Random(nv, 3);
+    const int nf = 1 + static_cast<int>(rng() % 10);
+    for (int f = 0; f < nf; ++f) {
+      std::vector<int> face(2 + rng() % 4);
+      for (int& v : face) v = static_cast<int>(rng() % (nv + 1)) - (trial % 17 == 0 ? 1 : 0);
+      m.faces.push_back(face);
+    }
+    if (trial % 2 == 0) {
+      // A valid mixed sheet with random faces removed (still valid, possibly disconnected or with
+      // non-manifold vertices), random creases on its edges, and sometimes one corrupted index.
+      m = mixed_house();
+      for (int k = static_cast<int>(rng() % 4); k > 0; --k) m.faces.erase(m.faces.begin() + rng() % m.faces.size());
+      const auto edges = unique_edges(m);
+      for (int k = static_cast<int>(rng() % 4); k > 0; --k) m.creases.push_back(edges[rng() % edges.size()]);
+      if (rng() % 3 == 0) m.faces[rng() % m.faces.size()][0] = static_cast<int>(rng() % 12) - 1;
+    }
+    if (rng() % 3 == 0) m.creases.emplace_back(static_cast<int>(rng() % nv), static_cast<int>(rng() % nv));
+    if (rng() % 4 == 0) m.corners.push_back(static_cast<int>(rng() % (m.num_vertices() + 1)));
+    try {
+      const SubdivisionOperator op = build_subdivision(m, 2);
+      ++accepted;
+      for (int r = 0; r < op.S.rows(); ++r) ASSERT_NEAR(op.S.row(r).sum(), 1.0, 1e-12);
+      for (const auto& f : op.refined.faces)
+        for (int v : f) ASSERT_TRUE(v >= 0 && v < op.refined.num_vertices());
+    } catch (const InputError&) {
+      ++rejected;
+    }
+  }
+  std::printf("[random] %d accepted, %d rejected\n", accepted, rejected);
+  EXPECT_GT(accepted, 10);
+  EXPECT_GT(rejected, 10);
+}
+
 }  // namespace
 }  // namespace mm
