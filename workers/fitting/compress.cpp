@@ -65,10 +65,10 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
     ++out.rounds;
     auto control = build_control_polyhedron(mesh, features, seg, co);
     auto result = fit_control_points(control.mesh, mesh, features, fit);
+    const std::vector<double> result_error = result.target_error;
     const double rel = result.stats.hausdorff / result.stats.diagonal;
     const bool fits = rel <= o.tolerance;
-    const bool improved = !have || result.stats.hausdorff < best.stats.hausdorff;
-    if (improved || fits) {
+    if (!have || fits || result.stats.hausdorff < best.stats.hausdorff) {
       best = std::move(result);
       have = true;
     }
@@ -76,11 +76,11 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
       out.tolerance_met = true;
       break;
     }
-    // At the budget, rounds only move vertices around; stop once that stops helping.
-    if (control.mesh.num_vertices() >= o.max_vertices && !improved && round > 0) break;
+    // At the budget, rounds only move vertices around (the importance keeps growing where the
+    // error stays), which helps unevenly: keep going to max_rounds and keep the best.
     // Spend more vertices where the surface is still too far, and a few more overall.
     const double limit = o.tolerance * best.stats.diagonal;
-    const auto& err = best.target_error;
+    const auto& err = result_error;
     for (size_t v = 0; v < err.size(); ++v)
       if (err[v] > limit) co.importance[v] *= 1.0 + 8.0 * std::min(err[v] / limit, 4.0);
     const double grow = std::clamp(std::sqrt(rel / o.tolerance), 1.15, 2.0);
