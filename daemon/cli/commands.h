@@ -14,6 +14,7 @@ struct CommandFailed : std::runtime_error {
 
 void add_offline_commands(CLI::App& app);  // keygen, embed, extract, info
 void add_compress_commands(CLI::App& app);  // compress, decompress, compare, render
+void add_run_commands(CLI::App& app);      // submit protect|detect, run --until-empty
 void add_store_commands(CLI::App& app);    // init, customer, jobs, assets, copies, detections
 
 }  // namespace mm::cli

@@ -8,6 +8,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   mm::cli::add_offline_commands(app);
   mm::cli::add_compress_commands(app);
+  mm::cli::add_run_commands(app);
   mm::cli::add_store_commands(app);
   try {
     app.parse(argc, argv);
