@@ -61,7 +61,7 @@ Level make_base_level(const Mesh& m) {
   if (m.faces.empty()) throw InputError(kSource, "no faces");
   long long total = 0;
   for (const auto& f : m.faces) total += static_cast<long long>(f.size());
-  if (total > kMaxRefinedVertices) throw InputError(kSource, "too many face corners");
+  if (total > 100'000'000) throw InputError(kSource, "more than 100 million face corners");
   L.foff.reserve(m.faces.size() + 1);
   L.fverts.reserve(total);
   for (size_t fi = 0; fi < m.faces.size(); ++fi) {
@@ -397,20 +397,19 @@ Level child_level(const Level& L, const std::vector<int>& fpoint, int nfp) {
   auto epoint = [&](int e) { return nv + nfp + e; };
   Level C;
   C.nv = nchild;
-  int nint = 0;
-  int nchild_faces = 0;
+  // A triangle has 3 interior edges and 4 triangle children; an n-gon n edges and n quads.
+  int nint = 0, nchild_faces = 0;
+  size_t nchild_corners = 0;
   for (int f = 0; f < nf; ++f) {
-    nint += L.fsize(f);  // a triangle has 3 interior edges, an n-gon n
-    nchild_faces += L.fsize(f) == 3 ? 4 : L.fsize(f);
+    const int s = L.fsize(f);
+    nint += s;
+    nchild_faces += s == 3 ? 4 : s;
+    nchild_corners += s == 3 ? 12 : 4 * static_cast<size_t>(s);
   }
   C.everts.resize(nint + 2 * static_cast<size_t>(ne));
   C.ecrease.assign(C.everts.size(), 0);
   C.foff.resize(nchild_faces + 1);
-  C.fverts.resize(4 * static_cast<size_t>(nchild_faces) - [&] {
-    int tris = 0;
-    for (int f = 0; f < nf; ++f) tris += L.fsize(f) == 3;
-    return 4 * tris;  // triangle children have 3 corners, not 4
-  }());
+  C.fverts.resize(nchild_corners);
   C.fedges.resize(C.fverts.size());
   for (int e = 0; e < ne; ++e) {
     C.everts[nint + 2 * e] = {epoint(e), L.everts[e][0]};
