@@ -355,3 +355,19 @@ TEST(Queue, RowsInsertedDirectlyByAnotherSystemFollowTheContract) {
   raw_query(o.db_path, "INSERT INTO jobs(kind, state) VALUES('protect', 'running')", &err);
   EXPECT_NE(err.find("CHECK"), std::string::npos) << "running without a lease: " << err;
 }
+
+TEST(Queue, NextScheduledTellsASleepingWorkerWhenToWake) {
+  TempDir dir;
+  StepClock clock;
+  auto o = options(dir, &clock);
+  o.backoff.base = 4000;
+  o.backoff.jitter = 0;
+  auto s = store::open_sqlite_store(o);
+  EXPECT_EQ(s->next_scheduled(), std::nullopt);
+  auto id = s->enqueue(spec()).job.id;
+  EXPECT_EQ(s->next_scheduled(), clock.now());
+  ASSERT_TRUE(s->claim("w", 1000));
+  EXPECT_EQ(s->next_scheduled(), std::nullopt) << "running jobs are not waiting";
+  s->fail(id, "w", "later");
+  EXPECT_EQ(s->next_scheduled(), clock.now() + 4000);
+}
