@@ -25,7 +25,11 @@ bool additive(const EmbedParams& p, double cs) {
   return p.method == Method::Additive && std::abs(cs) < p.threshold;
 }
 
+// Coefficient j of the documented order: eigenvector num_components + j / 3, axis j % 3.
 double& coefficient(const SpectralBasis& basis, Points& cs, int j) {
+  return cs(basis.num_components + j / 3, j % 3);
+}
+double coefficient(const SpectralBasis& basis, const Points& cs, int j) {
   return cs(basis.num_components + j / 3, j % 3);
 }
 
@@ -64,7 +68,7 @@ Points embed(const SpectralBasis& basis, const Points& original, const std::vect
   const Points cs = to_spectral(basis, original);
   Points delta = Points::Zero(cs.rows(), 3);
   for (int j = 0; j < static_cast<int>(seq.b.size()); ++j) {
-    const double c = coefficient(basis, const_cast<Points&>(cs), j);
+    const double c = coefficient(basis, cs, j);
     const double ab = params.strength * seq.b[j];
     // eq. (9) additive branch, else eq. (8): Cs' - Cs = a b Cs.
     coefficient(basis, delta, j) = additive(params, c) ? params.threshold * ab : c * ab;
@@ -85,9 +89,10 @@ Extraction extract(const SpectralBasis& basis, const Points& original, const Poi
                                          " vertices, the original has " + std::to_string(n) +
                                          " (resynchronise it first)");
   if (!suspect.allFinite()) throw InputError("suspect mesh", "has NaN or infinite coordinates");
+  if (!original.allFinite()) throw std::invalid_argument("extract: non-finite original coordinates");
+  if (message_bits <= 0) throw std::invalid_argument("extract: message_bits must be positive");
   if (expected && static_cast<int>(expected->size()) != message_bits)
     throw std::invalid_argument("extract: expected message length differs from message_bits");
-  if (message_bits <= 0) throw std::invalid_argument("extract: message_bits must be positive");
 
   // Sequence with the message all zeros: its entries are the key stream mapped to +-1.
   const MarkSequence stream =
@@ -100,10 +105,10 @@ Extraction extract(const SpectralBasis& basis, const Points& original, const Poi
   out.repeat = stream.repeat;
   std::vector<int> votes(message_bits, 0), copies(message_bits, 0);
   for (int j = 0; j < static_cast<int>(stream.b.size()); ++j) {
-    const double c = coefficient(basis, const_cast<Points&>(cs), j);
+    const double c = coefficient(basis, cs, j);
     const bool add = additive(params, c);
     const double move = add ? params.threshold * params.strength : std::abs(c) * params.strength;
-    const double dj = coefficient(basis, const_cast<Points&>(d), j);
+    const double dj = coefficient(basis, d, j);
     if (!(move > floor) || dj == 0) continue;
     const int sign_b = (dj > 0 ? 1 : -1) * (add || c > 0 ? 1 : -1);  // B''_j
     // `stream` is B for the all-zero message; a 1 bit inverts its copies (XOR in +-1 form), so
