@@ -297,6 +297,34 @@ TEST(Subdivision, RejectsBadInput) {
   EXPECT_THROW(apply_subdivision(op, Points(3, 3)), std::invalid_argument);
 }
 
+TEST(Subdivision, HighValenceFanAndHugePolygon) {
+  // A disk of 20000 triangles around one vertex: checks are linear in the valence, so this
+  // stays cheap (a quadratic check would take ~1e9 steps).
+  const int k = 20000;
+  Mesh fan;
+  fan.points.resize(k + 1, 3);
+  fan.points.row(k) << 0, 0, 0;
+  std::vector<int> ring;
+  for (int i = 0; i < k; ++i) {
+    fan.points.row(i) << std::cos(2 * M_PI * i / k), std::sin(2 * M_PI * i / k), 0.0;
+    fan.faces.push_back({k, i, (i + 1) % k});
+    ring.push_back(i);
+  }
+  const Mesh r = subdivide(fan, 2);
+  EXPECT_EQ(r.num_faces(), 16 * k);
+  EXPECT_NEAR(r.points(k, 2), 0.0, 1e-12);
+  EXPECT_EQ(build_subdivision(fan, 1).S.rows(), 3 * k + 1);  // vertices + spokes + rim edges
+  // Composing S for level 2 would put the centre's 20001-term row into ~4e4 rows: refused.
+  EXPECT_THROW(build_subdivision(fan, 2), std::invalid_argument);
+  // Polygons make dense rows (every corner in the face point): a 2000-gon is fine, a 20000-gon
+  // (2 * 4e8 operator entries) is refused before anything is allocated.
+  Mesh polygon = fan;
+  polygon.faces = {std::vector<int>(ring.begin(), ring.begin() + 2000)};
+  EXPECT_EQ(subdivide(polygon, 1).num_faces(), 2000);  // one quad per corner
+  polygon.faces = {ring};
+  EXPECT_THROW(subdivide(polygon, 1), InputError);
+}
+
 TEST(Subdivision, RandomTopologyNeverCrashes) {
   // Seeded random polygon soups (bad indices, repeats, non-manifold edges, flips, creases on
   // non-edges): every one is either subdivided into a watertight-or-open valid mesh or rejected

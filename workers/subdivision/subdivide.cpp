@@ -5,6 +5,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
 #include <utility>
 
 namespace mm {
@@ -64,28 +65,39 @@ Level make_base_level(const Mesh& m) {
   if (total > 100'000'000) throw InputError(kSource, "more than 100 million face corners");
   L.foff.reserve(m.faces.size() + 1);
   L.fverts.reserve(total);
+  std::vector<int> seen_in_face(n, -1);  // linear repeat check, also for huge polygons
   for (size_t fi = 0; fi < m.faces.size(); ++fi) {
     const auto& f = m.faces[fi];
-    const std::string where = "face " + std::to_string(fi);
-    if (f.size() < 3) throw InputError(kSource, where + " has fewer than 3 vertices");
+    auto where = [fi] { return "face " + std::to_string(fi); };
+    if (f.size() < 3) throw InputError(kSource, where() + " has fewer than 3 vertices");
     for (size_t k = 0; k < f.size(); ++k) {
       if (f[k] < 0 || f[k] >= n)
-        throw InputError(kSource, where + " has vertex index " + std::to_string(f[k]) +
+        throw InputError(kSource, where() + " has vertex index " + std::to_string(f[k]) +
                                       " out of range [0, " + std::to_string(n) + ")");
-      for (size_t j = 0; j < k; ++j)
-        if (f[j] == f[k])
-          throw InputError(kSource, where + " repeats vertex " + std::to_string(f[k]));
+      if (seen_in_face[f[k]] == static_cast<int>(fi))
+        throw InputError(kSource, where() + " repeats vertex " + std::to_string(f[k]));
+      seen_in_face[f[k]] = static_cast<int>(fi);
       L.fverts.push_back(f[k]);
     }
     L.foff.push_back(static_cast<int>(L.fverts.size()));
   }
+  // The first step gives every edge and vertex of an n-gon (n > 4) a row with all n corners of
+  // its face point: about 2 n^2 entries per n-gon. Bound it before allocating.
+  long long dense = 0;
+  for (const auto& f : m.faces)
+    if (f.size() > 4) dense += static_cast<long long>(f.size()) * static_cast<long long>(f.size());
+  if (dense > 20'000'000)
+    throw InputError(kSource, "polygons too large for subdivision (sum of squared sizes of faces with "
+                              "more than 4 sides is " + std::to_string(dense) + ", limit 20000000)");
   for (int i = 0; i < n; ++i)
     for (int c = 0; c < 3; ++c)
       if (!std::isfinite(m.points(i, c)))
         throw InputError(kSource, "vertex " + std::to_string(i) + " has a non-finite coordinate");
 
-  // Edges via per-vertex lists keyed on the smaller endpoint: (other endpoint, edge index).
-  std::vector<std::vector<std::pair<int, int>>> around(n);
+  // Edges by hashed endpoint pair (a list per vertex would be quadratic on a hostile fan).
+  std::unordered_map<long long, int> edge_of;
+  edge_of.reserve(static_cast<size_t>(total));
+  auto key = [n](int a, int b) { return static_cast<long long>(std::min(a, b)) * n + std::max(a, b); };
   std::vector<int> uses;      // faces per edge
   std::vector<int> forward;   // sides traversing the edge as everts[0] -> everts[1]
   L.fedges.resize(L.fverts.size());
@@ -93,17 +105,12 @@ Level make_base_level(const Mesh& m) {
     const int b = L.foff[f], s = L.fsize(f);
     for (int k = 0; k < s; ++k) {
       const int v0 = L.fverts[b + k], v1 = L.fverts[b + (k + 1) % s];
-      auto& list = around[std::min(v0, v1)];
-      const int other = std::max(v0, v1);
-      int e = -1;
-      for (const auto& [o, idx] : list)
-        if (o == other) e = idx;
-      if (e < 0) {
-        e = L.ne();
+      const auto [it, inserted] = edge_of.try_emplace(key(v0, v1), L.ne());
+      const int e = it->second;
+      if (inserted) {
         L.everts.push_back({v0, v1});
         uses.push_back(0);
         forward.push_back(0);
-        list.emplace_back(other, e);
       }
       L.fedges[b + k] = e;
       if (++uses[e] > 2)
@@ -123,11 +130,9 @@ Level make_base_level(const Mesh& m) {
   for (const auto& [a, b] : m.creases) {
     if (a < 0 || b < 0 || a >= n || b >= n || a == b)
       throw InputError(kSource, "crease " + edge_name(a, b) + " has invalid vertex indices");
-    int e = -1;
-    for (const auto& [o, idx] : around[std::min(a, b)])
-      if (o == std::max(a, b)) e = idx;
-    if (e < 0) throw InputError(kSource, "crease " + edge_name(a, b) + " is not an edge of the mesh");
-    L.ecrease[e] = 1;
+    const auto it = edge_of.find(key(a, b));
+    if (it == edge_of.end()) throw InputError(kSource, "crease " + edge_name(a, b) + " is not an edge of the mesh");
+    L.ecrease[it->second] = 1;
   }
   L.vcorner.assign(n, 0);
   for (int c : m.corners) {
@@ -168,13 +173,17 @@ Adjacency adjacency(const Level& L) {
 // Vertices whose faces form more than one fan (touching cones, bow-ties): kept fixed.
 void mark_nonmanifold_vertices(Level& L, const Adjacency& a) {
   std::vector<int> parent;
+  std::vector<int> slot(L.nf(), -1);  // face -> its index among the current vertex's faces
   for (int v = 0; v < L.nv; ++v) {
     const int nfaces = a.vfaces.size(v);
     if (nfaces <= 1) continue;
     const int* fb = a.vfaces.begin(v);
     parent.resize(nfaces);
-    for (int i = 0; i < nfaces; ++i) parent[i] = i;
-    auto local = [&](int f) { return static_cast<int>(std::find(fb, fb + nfaces, f) - fb); };
+    for (int i = 0; i < nfaces; ++i) {
+      parent[i] = i;
+      slot[fb[i]] = i;
+    }
+    auto local = [&](int f) { return slot[f]; };
     auto find = [&](int i) {
       while (parent[i] != i) i = parent[i] = parent[parent[i]];
       return i;
@@ -476,6 +485,12 @@ SparseOperator compose(const SparseOperator& A, const SparseOperator& B) {
   long long bound = 0;
   for (int r = 0; r < A.rows(); ++r)
     for (SparseOperator::InnerIterator a(A, r); a; ++a) bound += B.outerIndexPtr()[a.col() + 1] - B.outerIndexPtr()[a.col()];
+  // High-valence vertices make every nearby refined row carry their whole ring: refuse operators
+  // that would not fit in memory rather than over-allocate (subdivide() has no such limit).
+  if (bound > kMaxOperatorTerms)
+    throw std::invalid_argument("composed subdivision operator would need up to " + std::to_string(bound) +
+                                " terms (limit " + std::to_string(kMaxOperatorTerms) +
+                                "); use subdivide() or fewer levels");
   C.data().reserve(static_cast<Eigen::Index>(bound / 2 + A.rows()));
   RowBuilder row(static_cast<int>(B.cols()));
   for (int r = 0; r < A.rows(); ++r) {

@@ -31,11 +31,13 @@ struct SubdivisionOperator {
 // Largest accepted number of steps and refined vertices (a guard against over-allocation).
 constexpr int kMaxSubdivisionLevels = 8;
 constexpr long long kMaxRefinedVertices = 5'000'000;
+constexpr long long kMaxOperatorTerms = 100'000'000;  // products summed while composing S
 
 // Throws mm::InputError (source "subdivision control mesh") for out-of-range indices, faces with
 // fewer than 3 or repeated vertices, edges shared by more than two faces or traversed twice in the
 // same direction, creases that are not edges, corners out of range, non-finite points;
-// std::invalid_argument for levels outside [0, kMaxSubdivisionLevels] or a too large result.
+// std::invalid_argument for levels outside [0, kMaxSubdivisionLevels] or a too large result
+// (refined vertices, or terms while composing S around very high-valence vertices).
 SubdivisionOperator build_subdivision(const Mesh& control, int levels);
 
 // Refined positions for new control points of the same topology (faster than op.S * points).
