@@ -15,6 +15,7 @@
 #include "codec/bytes.h"
 #include "codec/connectivity.h"
 #include "codec/prediction.h"
+#include "codec/rice.h"
 #include "codec/stream_detail.h"
 
 namespace mm {
@@ -54,8 +55,8 @@ bool valid_key(const std::string& k) {
   });
 }
 
-// Largest varint byte count of a zigzagged coordinate delta (|delta| < 2^24 -> 25 bits).
-constexpr std::size_t kMaxCoordVarint = 4;
+// Most bits one Rice-coded coordinate can take: the quotient cap, its stop bit, k low bits.
+constexpr std::size_t kMaxCoordBits = codec_detail::kMaxRiceQuotient + 1 + codec_detail::kMaxRiceParameter;
 constexpr std::size_t kMaxIndexVarint = 5;
 
 // Payload size bounds implied by the counts: every element takes at least its minimum encoding
@@ -63,9 +64,10 @@ constexpr std::size_t kMaxIndexVarint = 5;
 // start symbol, three gate symbols and four 5-byte indices or ranks.
 std::pair<std::uint64_t, std::uint64_t> payload_bounds(const Header& h) {
   const std::uint64_t v = h.vertices, f = h.faces, c = h.corners, m = h.metadata_entries;
-  const std::uint64_t lo = 3 + 2 * f + 3 * v + c + 3 * m;
+  const std::uint64_t lo = 3 + 2 * f + 3 + 1 + bitset_bytes(3 * v) + c + 3 * m;
   const std::uint64_t hi = 3 * kMaxIndexVarint + f * (4 + 4 * 2 * kMaxIndexVarint) +
-                           bitset_bytes(4 * f) + 3 * v * kMaxCoordVarint + c * kMaxIndexVarint +
+                           bitset_bytes(4 * f) + 3 + kMaxIndexVarint + bitset_bytes(3 * v * kMaxCoordBits) +
+                           c * kMaxIndexVarint +
                            m * (2 * 2 + kMaxKeyBytes + kMaxValueBytes);
   return {lo, hi};
 }
@@ -122,12 +124,22 @@ std::vector<std::uint8_t> build_payload(const Mesh& mesh, const GridPoints& grid
     w.varint(static_cast<std::uint64_t>(c - prev_corner - 1));
     prev_corner = c;
   }
-  // One axis after another: each axis's residuals have their own statistics.
+  // Residuals (zigzagged unless plain), Rice coded with one parameter per axis, one axis after
+  // another: three parameter bytes, the bit stream's byte length, the bit stream.
+  std::vector<std::uint64_t> values[3];
   for (int a = 0; a < 3; ++a)
     for (Eigen::Index i = 0; i < grid.rows(); ++i) {
       const std::int64_t r = grid(i, a) - codec_detail::predict(grid, static_cast<int>(i), a, mode, lower);
-      w.varint(mode == codec_detail::Prediction::plain ? static_cast<std::uint64_t>(r) : zigzag(r));
+      values[a].push_back(mode == codec_detail::Prediction::plain ? static_cast<std::uint64_t>(r) : zigzag(r));
     }
+  codec_detail::BitWriter bits;
+  for (int a = 0; a < 3; ++a) {
+    const int k = codec_detail::best_rice_parameter(values[a]);
+    w.u8(static_cast<std::uint8_t>(k));
+    for (std::uint64_t u : values[a]) bits.rice(u, k);
+  }
+  w.varint(bits.bytes().size());
+  w.raw(bits.bytes().data(), bits.bytes().size());
   for (const auto& [k, v] : metadata) {
     w.varint(k.size());
     w.raw(k.data(), k.size());
@@ -219,6 +231,10 @@ Parts split(const std::uint8_t* data, std::size_t size, const std::string& sourc
   h.step = in.f64("step");
   if (!h.offset.allFinite() || !std::isfinite(h.step) || !(h.step > 0))
     in.fail("transform is not finite or its step is not positive");
+  // Every grid point must map to a finite position.
+  const double span = h.step * static_cast<double>((1u << h.bits) - 1u);
+  if (!std::isfinite(span) || !(h.offset.array() + span).allFinite())
+    in.fail("transform maps the grid beyond the finite range");
   h.vertices = static_cast<std::uint32_t>(in.varint("vertex count", kMaxStreamVertices));
   h.faces = static_cast<std::uint32_t>(in.varint("face count", kMaxStreamFaces));
   h.creases = static_cast<std::uint32_t>(in.varint("crease count", 4ull * h.faces));
@@ -304,7 +320,10 @@ std::vector<std::uint8_t> encode(const Mesh& mesh, const CodecParams& params) {
     const auto raw = build_payload(mesh, grid, crease_bits, corners, params.metadata, mode, lower);
     for (int level : {params.zstd_level, 0}) {
       auto s = codec_detail::join(hd, raw, level);
-      if (best.empty() || s.size() < best.size()) best = std::move(s);
+      // Conservative payload size (header varints take at most 60 bytes, the CRC 4).
+      const bool refused = level > 0 && raw.size() > std::max<std::size_t>(codec_detail::kExpansionFloor,
+                                                                           codec_detail::kMaxExpansion * (s.size() - codec_detail::kFixedHeaderBytes - 64));
+      if (!refused && (best.empty() || s.size() < best.size())) best = std::move(s);
     }
   }
   return best;
@@ -351,17 +370,29 @@ DecodedStream decode(const std::uint8_t* data, std::size_t size, const std::stri
   const auto mode = static_cast<codec_detail::Prediction>(mode_bits);
   const auto lower = codec_detail::lower_neighbours(edges, n);
   const bool plain = mode == codec_detail::Prediction::plain;
+  int rice_k[3];
+  for (int& k : rice_k) {
+    k = in.u8("Rice parameter");
+    if (k > codec_detail::kMaxRiceParameter) in.fail("Rice parameter " + std::to_string(k) + " too large");
+  }
+  const std::size_t bit_bytes = in.varint("coordinate bit stream length", parts.raw.size());
+  const std::uint8_t* bit_data = in.bytes(bit_bytes, "coordinate bit stream");
+  Reader bit_errors(bit_data, bit_bytes, source, "coordinates");
+  codec_detail::BitReader bits(bit_data, bit_bytes, bit_errors);
   out.grid.resize(n, 3);
   for (int a = 0; a < 3; ++a)
     for (int i = 0; i < n; ++i) {
-      const std::uint64_t u = in.varint("coordinate", plain ? q.max_value() : 2ull * q.max_value());
+      const std::uint64_t u = bits.rice(rice_k[a], "coordinate");
+      if (u > 2ull * q.max_value())
+        bit_errors.fail("vertex " + std::to_string(i) + " residual " + std::to_string(u) + " exceeds the grid");
       const std::int64_t v = plain ? static_cast<std::int64_t>(u)
                                    : codec_detail::predict(out.grid, i, a, mode, lower) + unzigzag(u);
       if (v < 0 || v > q.max_value())
-        in.fail("vertex " + std::to_string(i) + " coordinate outside the " +
-                std::to_string(q.bits) + "-bit grid");
+        bit_errors.fail("vertex " + std::to_string(i) + " coordinate outside the " +
+                        std::to_string(q.bits) + "-bit grid");
       out.grid(i, a) = static_cast<std::int32_t>(v);
     }
+  bits.expect_end("the coordinate bit stream");
   mesh.points = dequantize(out.grid, q);
 
   std::string prev_key;

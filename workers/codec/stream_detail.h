@@ -18,9 +18,10 @@ constexpr std::uint8_t kPredictionMask = 6;
 constexpr std::uint8_t kKnownFlags = kFlagZstd | kPredictionMask;
 constexpr std::size_t kFixedHeaderBytes = 39;  // magic .. step
 constexpr std::size_t kChecksumBytes = 4;
-// A real payload never compresses better than this; a frame that claims more is refused
-// before its output buffer is allocated, so memory stays linear in the stream size.
-constexpr std::size_t kMaxExpansion = 1024;
+// A real payload (Rice-coded coordinates do not compress) never shrinks this much under zstd;
+// a frame that claims more is refused before its output buffer is allocated, so memory stays
+// linear in the stream size. The encoder stores payloads that would exceed it.
+constexpr std::size_t kMaxExpansion = 64;
 constexpr std::size_t kExpansionFloor = 1u << 16;
 
 struct Header {
