@@ -2,9 +2,11 @@
 // quantised positions, entropy coded with zstd and sealed by a CRC-32. docs/stream-format.md
 // describes it byte by byte.
 //
-// Vertex order and face order (with each face's starting vertex) are kept exactly: the
-// watermark lives in the spectrum of this vertex order. Creases are stored as a set over the
-// mesh's edges and corners as a set, so both come back sorted and without duplicates.
+// Vertex order is kept exactly: the watermark lives in the spectrum of this vertex order.
+// Face order and each face's first vertex carry no meaning and are not kept (faces come back in
+// the connectivity coder's traversal order, orientation intact; codec/connectivity.h). Creases
+// are stored as a set over the mesh's edges and corners as a set, so both come back sorted and
+// without duplicates. Encoding a decoded stream again reproduces it byte for byte.
 #pragma once
 #include <cstdint>
 #include <map>
@@ -25,7 +27,7 @@ struct CodecParams {
 };
 
 struct DecodedStream {
-  Mesh mesh;                 // de-normalised positions = dequantize(grid, quantization)
+  Mesh mesh;                 // positions = dequantize(grid, quantization), in the part's units
   GridPoints grid;           // the quantised values, exactly as stored
   Quantization quantization;
   std::map<std::string, std::string> metadata;
