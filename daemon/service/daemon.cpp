@@ -222,6 +222,8 @@ int Daemon::run() {
   int reaped = store_->reap_expired_leases();
   if (int stale = remove_stale_output_temps(cfg->output_dir))
     spdlog::info("removed {} half-written temporary output file(s) left by a previous crash", stale);
+  if (int stale = remove_stale_reason_temps(cfg->drop_dir))
+    spdlog::info("removed {} half-written reason file(s) left by a previous crash", stale);
   spdlog::info("meshmarkd started: {} workers, drop {}, output {}, inotify {}, schema v{}{}", cfg->workers,
                cfg->drop_dir, cfg->output_dir, watcher_->inotify_active() ? "on" : "off", store_->schema_version(),
                reaped ? ", " + std::to_string(reaped) + " expired leases reaped" : "");

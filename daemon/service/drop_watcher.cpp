@@ -34,8 +34,11 @@ bool lstat_is(const std::string& path, mode_t type) {
   return (st.st_mode & S_IFMT) == type;
 }
 
+// Hidden temporary name: scanners of done/ and failed/ skip dotfiles, and a crash leaves a name
+// remove_stale_reason_temps() recognises.
 void write_text_atomic(const std::string& path, const std::string& text) {
-  std::string tmp = path + ".tmp-" + std::to_string(::getpid());
+  fs::path target(path);
+  std::string tmp = (target.parent_path() / ("." + target.filename().string() + ".tmp-" + std::to_string(::getpid()))).string();
   int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) throw std::system_error(errno, std::generic_category(), "cannot write " + tmp);
   const char* p = text.data();
@@ -259,6 +262,25 @@ std::vector<DropItem> DropWatcher::poll(std::int64_t now_ms) {
   return out;
 }
 
+int remove_stale_reason_temps(const std::string& drop_root) {
+  int n = 0;
+  for (const char* area : {"done", "failed"}) {
+    std::error_code ec;
+    fs::path dir = fs::path(drop_root) / area;
+    if (!fs::is_directory(fs::symlink_status(dir))) continue;
+    for (fs::recursive_directory_iterator it(dir, fs::directory_options::none, ec), end; !ec && it != end;
+         it.increment(ec)) {
+      std::string name = it->path().filename().string();
+      if (name.size() > 1 && name[0] == '.' && name.find(".json.tmp-") != std::string::npos &&
+          it->is_regular_file() && !it->is_symlink()) {
+        std::error_code ec2;
+        if (fs::remove(it->path(), ec2)) ++n;
+      }
+    }
+  }
+  return n;
+}
+
 std::vector<DropItem> DropWatcher::scan_once(std::int64_t now_ms) {
   age_only_ = true;
   scan(now_ms);
@@ -279,8 +301,9 @@ std::string DropWatcher::finish(const std::string& drop_root, const DropItem& it
   fs::path name(item.name);
   std::string stem = name.stem().string(), ext = name.extension().string();
   fs::path dest = dest_dir / item.name;
-  for (int i = 1; fs::exists(fs::symlink_status(dest)) || fs::exists(fs::symlink_status(dest.string() + ".json"));
-       ++i)
+  // A reason file without its file beside it is an orphan of a crash between the two steps below;
+  // it is replaced, not kept.
+  for (int i = 1; fs::exists(fs::symlink_status(dest)); ++i)
     dest = dest_dir / (stem + "-" + std::to_string(i) + ext);
   write_text_atomic(dest.string() + ".json", reason_json);
   if (::rename(item.path.c_str(), dest.c_str()) != 0)

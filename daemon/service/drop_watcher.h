@@ -35,6 +35,10 @@ bool is_valid_customer_name(const std::string& name);  // [A-Za-z0-9._-]{1,64}, 
 std::optional<DropItem> classify_drop_path(const std::string& drop_root, const std::string& relative,
                                            std::string* why = nullptr);
 
+// Removes hidden temporary reason files (".<name>.json.tmp-<pid>") a crash left in done/ and
+// failed/. Call at start, before any finish(). Returns how many were removed.
+int remove_stale_reason_temps(const std::string& drop_root);
+
 class DropWatcher {
  public:
   DropWatcher(std::string drop_root, bool use_inotify, int settle_ms);

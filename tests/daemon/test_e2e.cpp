@@ -49,6 +49,7 @@ int count_files(const fs::path& dir, const std::string& suffix_excluded = ".json
   int n = 0;
   for (const auto& e : fs::directory_iterator(dir)) {
     std::string name = e.path().filename().string();
+    if (name[0] == '.') continue;  // temporary names
     if (e.is_regular_file() && !(name.size() >= suffix_excluded.size() &&
                                  name.compare(name.size() - suffix_excluded.size(), suffix_excluded.size(),
                                               suffix_excluded) == 0))
@@ -312,6 +313,12 @@ TEST_F(E2E, KillNineMidBatchThenRestartCompletesEveryJobExactlyOnce) {
     EXPECT_EQ(count_files(drop / "done/protect" / c), 4) << c;
     for (const auto& e : fs::directory_iterator(out / c))
       EXPECT_NE(e.path().filename().string()[0], '.') << e.path();
+    for (const auto& e : fs::directory_iterator(drop / "done/protect" / c)) {
+      std::string name = e.path().filename().string();
+      EXPECT_NE(name[0], '.') << e.path();  // no half-written reason file survives a restart
+      if (name.size() > 5 && name.substr(name.size() - 5) == ".json")
+        EXPECT_TRUE(fs::exists(e.path().string().substr(0, e.path().string().size() - 5))) << e.path();
+    }
   }
   EXPECT_TRUE(st->integrity_ok());
 }
