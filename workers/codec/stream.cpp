@@ -320,9 +320,10 @@ std::vector<std::uint8_t> encode(const Mesh& mesh, const CodecParams& params) {
     const auto raw = build_payload(mesh, grid, crease_bits, corners, params.metadata, mode, lower);
     for (int level : {params.zstd_level, 0}) {
       auto s = codec_detail::join(hd, raw, level);
-      // Conservative payload size (header varints take at most 60 bytes, the CRC 4).
+      // Conservative payload size: header varints take at most 60 bytes, the CRC 4.
+      constexpr std::size_t kHeaderMax = codec_detail::kFixedHeaderBytes + 64;
       const bool refused = level > 0 && raw.size() > std::max<std::size_t>(codec_detail::kExpansionFloor,
-                                                                           codec_detail::kMaxExpansion * (s.size() - codec_detail::kFixedHeaderBytes - 64));
+                                                                           codec_detail::kMaxExpansion * (s.size() > kHeaderMax ? s.size() - kHeaderMax : 0));
       if (!refused && (best.empty() || s.size() < best.size())) best = std::move(s);
     }
   }
