@@ -7,7 +7,7 @@
 # Prints a table per mesh and the median size ratio Draco / meshmark; writes fandisk pictures.
 #
 # Usage: scripts/bench-compress.sh [OUT_DIR]     (env: MESHMARK=path/to/meshmark, MESHES=dir,
-#        MAX_VERTICES=1000, TOLERANCE=0.005, BITS=12, LIST="fandisk.off ...")
+#        MAX_VERTICES=1000, TOLERANCE=0.005, BITS (default: chosen by compress), LIST="fandisk.off ...")
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MESHMARK=${MESHMARK:-build/daemon/meshmark}
@@ -15,7 +15,7 @@ MESHES=${MESHES:-../shared/data/meshes}
 OUT=${1:-build/bench-compress}
 MAX_VERTICES=${MAX_VERTICES:-1000}
 TOLERANCE=${TOLERANCE:-0.005}
-BITS=${BITS:-12}
+BITS=${BITS:-}
 LIST=${LIST:-"fandisk.off bracket-3.stl blade.stl rocker.stl abc5.stl abc6.stl abc7.stl abc8.stl abc9.stl"}
 for tool in "$MESHMARK" draco_encoder draco_decoder jq python3; do
   command -v "$tool" >/dev/null || [ -x "$tool" ] || { echo "bench-compress: $tool not found" >&2; exit 2; }
@@ -75,7 +75,7 @@ for name in $LIST; do
   base="${name%.*}"
   mmc="$OUT/$base.mmc"
   summary=$("$MESHMARK" compress "$in" "$mmc" --tolerance "$TOLERANCE" --max-vertices "$MAX_VERTICES" \
-            --bits "$BITS" --json)
+            ${BITS:+--bits "$BITS"} --json)
   bytes=$(stat -c %s "$mmc")
   secs=$(jq -r '.seconds' <<<"$summary")
   ctrl=$(jq -r '.control_vertices' <<<"$summary")
@@ -102,9 +102,12 @@ for name in $LIST; do
     ratio=$(python3 -c "print('%.2f' % ($best_bytes / $bytes))")
     ratios+=("$ratio")
   fi
-  printf '%-14s %7d %8d %7d %8.4f%% %8.4f%% %7.2f | %5s %9s %9s | %7s\n' "$base" "$nin" "$ctrl" "$bytes" \
-    "$(python3 -c "print(100*$h)")" "$(python3 -c "print(100*$rms)")" "$secs" "$best_qp" "$best_bytes" \
-    "$( [ "$best_h" = - ] && echo - || python3 -c "print('%.4f%%' % (100*$best_h))")" "$ratio"
+  h_pct=$(python3 -c "print('%.4f%%' % (100 * $h))")
+  rms_pct=$(python3 -c "print('%.4f%%' % (100 * $rms))")
+  draco_pct=-
+  [ "$best_h" = - ] || draco_pct=$(python3 -c "print('%.4f%%' % (100 * $best_h))")
+  printf '%-14s %7d %8d %7d %9s %9s %7.2f | %5s %9s %9s | %7s\n' "$base" "$nin" "$ctrl" "$bytes" \
+    "$h_pct" "$rms_pct" "$secs" "$best_qp" "$best_bytes" "$draco_pct" "$ratio"
 done
 if [ ${#ratios[@]} -gt 0 ]; then
   python3 -c "import statistics,sys; r=[float(x) for x in sys.argv[1:]]; print('median size ratio Draco/meshmark at equal Hausdorff: %.2f over %d meshes (target >= 5)' % (statistics.median(r), len(r)))" "${ratios[@]}"

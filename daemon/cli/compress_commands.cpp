@@ -4,6 +4,7 @@
 //   meshmark compare A B            symmetric Hausdorff / RMS / mean distance relative to A's diagonal
 //   meshmark render IN OUT.png      a picture of a mesh, a decoded stream or its control polyhedron
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -48,6 +49,19 @@ Mesh load_surface(const std::string& path, int level) {
   return decompress_to_level(s.mesh, level >= 0 ? level : stream_levels(s, 3));
 }
 
+// Fewest bits whose worst rounding error (half a grid step on each axis) stays below a fifth of
+// the tolerance; the grid spans the control mesh's longest side.
+int auto_bits(const Mesh& control, double tolerance) {
+  Eigen::RowVector3d lo = control.points.colwise().minCoeff(), hi = control.points.colwise().maxCoeff();
+  const double side = (hi - lo).maxCoeff(), diagonal = (hi - lo).norm();
+  if (!(side > 0)) return 12;
+  for (int bits = kMinQuantBits; bits < kMaxQuantBits; ++bits) {
+    const double step = side / static_cast<double>((1u << bits) - 1u);
+    if (0.5 * step * std::sqrt(3.0) <= 0.2 * tolerance * diagonal) return bits;
+  }
+  return kMaxQuantBits;
+}
+
 char fmt_buf[64];
 const char* pct(double x) {
   std::snprintf(fmt_buf, sizeof fmt_buf, "%.4f%%", 100 * x);
@@ -61,7 +75,7 @@ void add_compress_commands(CLI::App& app) {
     struct Args {
       std::string in, out;
       CompressOptions o;
-      int bits = 12;
+      int bits = 0;  // 0: chosen from the tolerance
       bool json = false;
     };
     auto a = std::make_shared<Args>();
@@ -78,8 +92,10 @@ void add_compress_commands(CLI::App& app) {
         ->capture_default_str()->check(CLI::Range(1, 5));
     c->add_option("--angle", a->o.angle_degrees, "dihedral angle (degrees) above which an edge is a crease")
         ->capture_default_str()->check(CLI::Range(1.0, 179.0));
-    c->add_option("--bits", a->bits, "quantisation bits per coordinate")
-        ->capture_default_str()->check(CLI::Range(kMinQuantBits, kMaxQuantBits));
+    c->add_option("--bits", a->bits,
+                  "quantisation bits per coordinate (default: the fewest whose rounding error stays "
+                  "below a fifth of the tolerance)")
+        ->check(CLI::Range(kMinQuantBits, kMaxQuantBits));
     c->add_flag("--json", a->json, "print the summary as JSON");
     c->callback([a] {
       Mesh mesh = read_mesh(a->in);
@@ -87,7 +103,7 @@ void add_compress_commands(CLI::App& app) {
       CompressResult r = compress(mesh, a->o, a->in);
       double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       CodecParams params;
-      params.quant_bits = a->bits;
+      params.quant_bits = a->bits > 0 ? a->bits : auto_bits(r.control, a->o.tolerance);
       params.metadata["levels"] = std::to_string(r.levels);
       auto bytes = encode(r.control, params);
       write_stream_file(a->out, bytes);
@@ -103,7 +119,7 @@ void add_compress_commands(CLI::App& app) {
                        {"creases", r.control.creases.size()},
                        {"corners", r.control.corners.size()},
                        {"levels", r.levels},
-                       {"bits", a->bits},
+                       {"bits", params.quant_bits},
                        {"stream_bytes", bytes.size()},
                        {"hausdorff", d.hausdorff_relative()},
                        {"rms", d.rms_relative()},

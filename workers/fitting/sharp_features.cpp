@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <map>
+#include <set>
 
 namespace mm {
 namespace {
@@ -16,6 +17,40 @@ Eigen::Vector3d face_normal(const Mesh& m, const std::vector<int>& f) {
     n += a.cross(b);
   }
   return n;
+}
+
+// Drops short crease chains that start at a dangling end (valence 1): walking from the end
+// through valence-2 vertices, if another end or a branching is reached within `min_edges` edges,
+// the chain is removed. Boundary edges (one face) are never removed.
+void prune_fragments(Features& f, int n, int min_edges) {
+  std::vector<std::vector<int>> nbrs(n);
+  for (auto [a, b] : f.sharp_edges) {
+    nbrs[a].push_back(b);
+    nbrs[b].push_back(a);
+  }
+  std::set<std::pair<int, int>> removed;
+  auto key = [](int a, int b) { return std::make_pair(std::min(a, b), std::max(a, b)); };
+  for (int v = 0; v < n; ++v) {
+    if (nbrs[v].size() != 1) continue;
+    std::vector<std::pair<int, int>> chain;
+    int prev = v, cur = nbrs[v][0];
+    chain.push_back(key(prev, cur));
+    while (nbrs[cur].size() == 2 && static_cast<int>(chain.size()) < min_edges) {
+      int next = nbrs[cur][0] == prev ? nbrs[cur][1] : nbrs[cur][0];
+      prev = cur;
+      cur = next;
+      chain.push_back(key(prev, cur));
+    }
+    if (static_cast<int>(chain.size()) < min_edges && nbrs[cur].size() != 2)
+      removed.insert(chain.begin(), chain.end());
+  }
+  if (removed.empty()) return;
+  std::vector<std::pair<int, int>> kept;
+  for (const auto& e : f.sharp_edges)
+    if (!removed.count(e) || f.boundary_set.count(e)) kept.push_back(e);
+  f.sharp_edges = std::move(kept);
+  std::fill(f.sharp_valence.begin(), f.sharp_valence.end(), 0);
+  for (auto [a, b] : f.sharp_edges) ++f.sharp_valence[a], ++f.sharp_valence[b];
 }
 
 }  // namespace
@@ -49,6 +84,7 @@ Features detect_features(const Mesh& mesh, const FeatureOptions& options) {
     if (faces.size() == 1) {
       sharp = true;
       ++out.boundary_edges;
+      out.boundary_set.insert(e);
     } else if (faces.size() > 2) {
       sharp = true;
       ++out.nonmanifold_edges;
@@ -62,6 +98,8 @@ Features detect_features(const Mesh& mesh, const FeatureOptions& options) {
       ++out.sharp_valence[e.second];
     }
   }
+
+  if (options.min_crease_edges > 0) prune_fragments(out, n, options.min_crease_edges);
 
   // Corners: crease ends (valence 1), branchings (valence >= 3) and sharp turns (valence 2).
   std::vector<std::vector<int>> crease_nbrs(n);
