@@ -43,7 +43,9 @@ SubdivisionOperator build_subdivision(const Mesh& control, int levels);
 // Refined positions for new control points of the same topology (faster than op.S * points).
 Points apply_subdivision(const SubdivisionOperator& op, const Points& control_points);
 
-// Convenience: the refined mesh with positions.
+// The refined mesh with positions, for decompression: evaluates the same rules on the points
+// level by level without forming S (equal to build_subdivision(...).refined up to rounding).
+// Same errors as build_subdivision except the limit on S.
 Mesh subdivide(const Mesh& control, int levels);
 
 }  // namespace mm
