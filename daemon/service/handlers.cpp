@@ -367,6 +367,7 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
     d.asset_id = best_t->asset_id;
     d.correlation = best->correlation;
     d.p_value = best->corrected_p;
+    details["best_neg_log10_corrected_p"] = std::max(0.0, best->neg_log10_p - std::log10(std::max(1, total)));
     int bits = 32;
     for (const auto& c : best_t->copies)
       if (c.id == best->copy_id) {
@@ -395,9 +396,12 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
     if (auto c = st.get_customer(*d.customer_id)) result["customer"] = c->name;
   }
   if (d.p_value) result["p_value"] = *d.p_value;
+  if (details.contains("best_neg_log10_corrected_p")) result["neg_log10_p"] = details["best_neg_log10_corrected_p"];
   if (d.correlation) result["correlation"] = *d.correlation;
   if (!d.decoded_payload_hex.empty()) result["decoded_payload"] = d.decoded_payload_hex;
   rec.result_json = result.dump();
+  spdlog::info("detect {}: {} (match: {}; {} copies tried; best corrected p {:.3g})", name, d.verdict,
+               match.empty() ? "none" : match, total, d.p_value ? *d.p_value : 1.0);
   return rec;
 }
 

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -219,6 +220,7 @@ TEST_F(E2E, ProtectsTwoCustomersAndTracesTheLeak) {
   ASSERT_TRUE(wait_for([&] { return count_files(drop / "done/detect") == 4; }, 120s)) << log();
 
   json leak = reason(drop / "done/detect/leak-fandisk.off")["result"];
+  std::cout << "noisy leak of beta's fandisk: " << leak.dump() << "\n";
   EXPECT_EQ(leak["verdict"], "attributed") << leak.dump();
   EXPECT_EQ(leak["customer"], "beta") << leak.dump();
   EXPECT_LT(leak["p_value"].get<double>(), 1e-9) << leak.dump();
@@ -228,6 +230,7 @@ TEST_F(E2E, ProtectsTwoCustomersAndTracesTheLeak) {
   EXPECT_LT(exact["p_value"].get<double>(), 1e-9);
   for (const char* innocent : {"original-abc7.stl", "innocent.off"}) {
     json r = reason(drop / "done/detect" / innocent)["result"];
+    std::cout << innocent << ": " << r.dump() << "\n";
     EXPECT_EQ(r["verdict"], "no watermark found") << innocent << r.dump();
     EXPECT_FALSE(r.contains("customer")) << r.dump();
   }

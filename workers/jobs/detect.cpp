@@ -18,6 +18,7 @@ Verdict detect_copy(const PreparedAsset& asset, const Points& registered,
     s.copy_id = c.copy_id;
     s.correlation = e.correlation;
     s.p_value = e.p_value;
+    s.neg_log10_p = e.neg_log10_p;
     s.corrected_p = std::min(1.0, e.p_value * tried);
     s.decoded_payload = bits_to_payload(e.message);
     s.payload_matches = s.decoded_payload == c.payload;

@@ -27,6 +27,7 @@ struct CopyScore {
   double correlation = 0;
   double p_value = 1;    // raw
   double corrected_p = 1;  // min(1, p * copies tried)
+  double neg_log10_p = 0;  // -log10 of the raw p-value, meaningful where p underflows to 0
   std::uint64_t decoded_payload = 0;
   bool payload_matches = false;
   double bit_error_rate = 0;
