@@ -197,3 +197,22 @@ TEST(ControlPolyhedron, FandiskCreasesFollowSharpEdges) {
     EXPECT_TRUE(shared) << "crease " << a << "-" << b << " leaves the feature network";
   }
 }
+
+TEST(Features, ShortDanglingFragmentsAreDropped) {
+  MM_REQUIRE_SHARED_MESHES();
+  auto m = mm::read_mesh(mm::test::shared_mesh("blade.stl"));  // remeshed: noisy crease bits
+  mm::FeatureOptions all;
+  all.min_crease_edges = 0;
+  auto raw = mm::detect_features(m, all);
+  auto pruned = mm::detect_features(m);
+  EXPECT_LT(pruned.sharp_edges.size(), raw.sharp_edges.size());
+  // Whatever survives is a subset of the raw sharp edges...
+  std::set<std::pair<int, int>> raw_set(raw.sharp_edges.begin(), raw.sharp_edges.end());
+  for (const auto& e : pruned.sharp_edges) EXPECT_TRUE(raw_set.count(e));
+  // ...and no isolated chain shorter than 3 edges is left.
+  auto s = mm::segment(m, pruned);
+  for (const auto& line : s.polylines) {
+    bool open_both = pruned.sharp_valence[line.front()] == 1 && pruned.sharp_valence[line.back()] == 1;
+    if (open_both) EXPECT_GE(line.size(), 4u);
+  }
+}
