@@ -30,7 +30,7 @@ Nonce nonce_from(int seed) {
   return n;
 }
 
-struct Fixture : ::testing::Test {
+struct ProtectDetect : ::testing::Test {
   void SetUp() override {
     MM_REQUIRE_SHARED_MESHES();
     original = read_mesh(test::shared_mesh("fandisk_quads.off"));
@@ -52,7 +52,7 @@ struct Fixture : ::testing::Test {
   std::vector<CopyCandidate> copies;
 };
 
-TEST_F(Fixture, CopyKeepsConnectivityAndUnits) {
+TEST_F(ProtectDetect, CopyKeepsConnectivityAndUnits) {
   Mesh c = copy_of(0);
   EXPECT_EQ(c.faces, original.faces);
   double diag = (original.points.colwise().maxCoeff() - original.points.colwise().minCoeff()).norm();
@@ -61,7 +61,7 @@ TEST_F(Fixture, CopyKeepsConnectivityAndUnits) {
   EXPECT_LT(moved, 0.05 * diag);  // imperceptible relative to the part, in the part's units
 }
 
-TEST_F(Fixture, AttributesExactCopyToItsCopyOnly) {
+TEST_F(ProtectDetect, AttributesExactCopyToItsCopyOnly) {
   for (int i = 0; i < 3; ++i) {
     Registration r = register_suspect(asset, copy_of(i));
     EXPECT_EQ(r.method, "identity");
@@ -75,7 +75,7 @@ TEST_F(Fixture, AttributesExactCopyToItsCopyOnly) {
   }
 }
 
-TEST_F(Fixture, NoisyRescaledReorderedCopyIsStillAttributed) {
+TEST_F(ProtectDetect, NoisyRescaledReorderedCopyIsStillAttributed) {
   Mesh c = copy_of(1);
   double diag = (original.points.colwise().maxCoeff() - original.points.colwise().minCoeff()).norm();
   std::mt19937 g(42);
@@ -100,7 +100,7 @@ TEST_F(Fixture, NoisyRescaledReorderedCopyIsStillAttributed) {
   EXPECT_LT(v.best.corrected_p, 1e-9);
 }
 
-TEST_F(Fixture, UnmarkedOriginalAndNoisyOriginalAreNotAttributed) {
+TEST_F(ProtectDetect, UnmarkedOriginalAndNoisyOriginalAreNotAttributed) {
   Registration r = register_suspect(asset, original);
   Verdict v = detect_copy(asset, r.points, copies, 1e-6);
   EXPECT_FALSE(v.attributed);
@@ -116,14 +116,14 @@ TEST_F(Fixture, UnmarkedOriginalAndNoisyOriginalAreNotAttributed) {
   EXPECT_GT(v.best.corrected_p, 1e-6);
 }
 
-TEST_F(Fixture, ForeignMeshIsNotAttributed) {
+TEST_F(ProtectDetect, ForeignMeshIsNotAttributed) {
   Mesh foreign = read_mesh(test::shared_mesh("abc9.stl"));
   Registration r = register_suspect(asset, foreign);
   Verdict v = detect_copy(asset, r.points, copies, 1e-6);
   EXPECT_FALSE(v.attributed);
 }
 
-TEST_F(Fixture, WrongPayloadOrWrongKeyIsNotAttributed) {
+TEST_F(ProtectDetect, WrongPayloadOrWrongKeyIsNotAttributed) {
   Mesh c = copy_of(2);
   Registration r = register_suspect(asset, c);
   // Right key and nonce but a record claiming another payload: the payload check refuses.
