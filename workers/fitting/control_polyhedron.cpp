@@ -4,6 +4,7 @@
 // QuadricT needs vector_traits from the mesh headers above.
 #include <OpenMesh/Core/Geometry/QuadricT.hh>
 #include <OpenMesh/Tools/Decimater/DecimaterT.hh>
+#include <OpenMesh/Tools/Decimater/ModAspectRatioT.hh>
 #include <OpenMesh/Tools/Decimater/ModBaseT.hh>
 #include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
 #include <algorithm>
@@ -216,9 +217,14 @@ ControlPolyhedron build_control_polyhedron(const Mesh& mesh, const Features& fea
     Decimater dec(om);
     typename ModFeatureQuadricT<OMesh>::Handle hq;
     OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle hn;
+    OpenMesh::Decimater::ModAspectRatioT<OMesh>::Handle ha;
     dec.add(hq);
     dec.add(hn);
     dec.module(hn).set_max_normal_deviation(options.max_normal_deviation_degrees);
+    if (options.max_aspect_ratio > 0) {
+      dec.add(ha);
+      dec.module(ha).set_aspect_ratio(static_cast<float>(options.max_aspect_ratio));
+    }
     if (!dec.initialize()) throw std::logic_error("decimater modules failed to initialise");
     dec.module(hq).set_chains(chain_of, chain_min);
     if (!options.importance.empty()) {

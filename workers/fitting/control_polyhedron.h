@@ -17,6 +17,9 @@ struct ControlOptions {
   int min_open_chain_interior = 1;  // vertices kept inside a crease polyline between two corners
   int min_closed_loop = 4;          // vertices kept on a closed crease loop without corners
   double max_normal_deviation_degrees = 60.0;  // rejects collapses that fold faces over
+  // Rejects collapses leaving a triangle longer than this times its height, unless they improve
+  // it: slivers make the subdivision surface ripple. 0 disables.
+  double max_aspect_ratio = 8.0;
   // Per input vertex: multiplies the cost of collapses there (empty = all 1). The fitting loop
   // raises it where the fitted surface stays too far away, so the next decimation keeps more
   // control vertices in those regions.
