@@ -147,9 +147,16 @@ TEST(ControlPolyhedron, GridCubeKeepsItsCreaseNetwork) {
   o.target_vertices = 8;
   auto c = mm::build_control_polyhedron(cube, f, s, o);
   expect_manifold(c.mesh, true);
-  // Corners stay; each of the 12 cube edges keeps one interior vertex (min_open_chain_interior).
+  // Corners stay and the creases shrink to the 12 cube edges: the mesh is the cube itself.
+  EXPECT_EQ(c.mesh.num_vertices(), 8);
   EXPECT_EQ(c.mesh.corners.size(), 8u);
-  EXPECT_EQ(c.mesh.creases.size(), 24u);
+  EXPECT_EQ(c.mesh.creases.size(), 12u);
+  // Asking for one interior vertex per crease polyline keeps 12 more vertices on the edges.
+  o.min_open_chain_interior = 1;
+  auto c1 = mm::build_control_polyhedron(cube, f, s, o);
+  expect_manifold(c1.mesh, true);
+  EXPECT_EQ(c1.mesh.num_vertices(), 20);
+  EXPECT_EQ(c1.mesh.creases.size(), 24u);
   // Every crease lies on a cube edge: its two ends share two coordinates in {0, 1}.
   for (auto [a, b] : c.mesh.creases) {
     Eigen::Vector3d pa = c.mesh.points.row(a), pb = c.mesh.points.row(b);

@@ -51,10 +51,9 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
   out.patches = seg.num_patches;
 
   ControlOptions co;
-  // Start small: corners plus a little per crease polyline and per patch, within the budget.
+  // Start small (the corners, a little per patch); rounds add vertices where they are needed.
   co.target_vertices = std::min(
-      o.max_vertices, std::max(24, static_cast<int>(features.corners.size() +
-                                                    2 * seg.polylines.size() + 2 * seg.num_patches)));
+      o.max_vertices, std::max(24, static_cast<int>(features.corners.size()) + seg.num_patches + 16));
   co.importance.assign(mesh.num_vertices(), 1.0);
   FitOptions fit;
   fit.levels = o.levels;

@@ -14,7 +14,7 @@ namespace mm {
 
 struct ControlOptions {
   int target_vertices = 100;  // decimation stops here (or earlier when nothing legal is left)
-  int min_open_chain_interior = 1;  // vertices kept inside a crease polyline between two corners
+  int min_open_chain_interior = 0;  // vertices kept inside a crease polyline between two corners
   int min_closed_loop = 4;          // vertices kept on a closed crease loop without corners
   double max_normal_deviation_degrees = 60.0;  // rejects collapses that fold faces over
   // Rejects collapses leaving a triangle longer than this times its height, unless they improve
