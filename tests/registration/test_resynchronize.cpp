@@ -1,0 +1,189 @@
+// Resynchronisation of suspects to the original control polyhedron: exact recovery from
+// subdivided copies (in order, shuffled, moved, triangulated), noise averaging, the polyhedron as
+// the codec hands it back, and clear failures.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <numeric>
+#include <random>
+
+#include "common/shared_meshes.h"
+#include "meshio/normalize.h"
+#include "meshio/read_mesh.h"
+#include "registration/resynchronize.h"
+#include "subdivision/decompress.h"
+#include "subdivision/subdivide.h"
+
+namespace {
+
+using mm::Mesh;
+using mm::Points;
+
+Mesh fandisk_quads() {
+  Mesh m = mm::read_mesh(mm::test::shared_mesh("fandisk_quads.off"));
+  mm::apply(mm::unit_box_normalization(m.points), m.points);
+  return m;
+}
+
+// One context for the whole suite: building it is the expensive, once-per-asset part.
+const mm::ResyncContext& context() {
+  static const mm::ResyncContext ctx(fandisk_quads(), 3);
+  return ctx;
+}
+
+double max_error(const Points& a, const Points& b) { return (a - b).rowwise().norm().maxCoeff(); }
+
+// Vertices renumbered by a seeded permutation, faces remapped and listed in shuffled order.
+Mesh shuffled(const Mesh& m, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<int> perm(m.num_vertices());
+  std::iota(perm.begin(), perm.end(), 0);
+  std::shuffle(perm.begin(), perm.end(), rng);
+  Mesh out;
+  out.points.resize(m.num_vertices(), 3);
+  for (int v = 0; v < m.num_vertices(); ++v) out.points.row(perm[v]) = m.points.row(v);
+  for (const auto& f : m.faces) {
+    std::vector<int> g;
+    for (int v : f) g.push_back(perm[v]);
+    std::rotate(g.begin(), g.begin() + static_cast<long>(rng() % g.size()), g.end());
+    out.faces.push_back(g);
+  }
+  std::shuffle(out.faces.begin(), out.faces.end(), rng);
+  return out;
+}
+
+mm::Similarity some_similarity() {
+  mm::Similarity s;
+  s.scale = 25.4;
+  s.rotation = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  s.translation = Eigen::RowVector3d(120, -40, 7.5);
+  return s;
+}
+
+}  // namespace
+
+TEST(Resync, SubdividedCopiesGiveTheControlPointsBack) {
+  MM_REQUIRE_SHARED_MESHES();
+  const auto& ctx = context();
+  for (int level = 1; level <= 3; ++level) {
+    const Mesh suspect = mm::subdivide(ctx.control(), level);
+    const auto r = mm::resynchronize(ctx, suspect);
+    EXPECT_EQ(r.method, "subdivided");
+    EXPECT_EQ(r.level, level);
+    EXPECT_FALSE(r.order_recovered);
+    EXPECT_LT(max_error(r.points, ctx.control().points), 1e-11) << "level " << level;
+    EXPECT_LT(r.residual_rms, 1e-12);
+  }
+}
+
+TEST(Resync, TriangulatedSubdividedCopyKeepsItsOrder) {
+  MM_REQUIRE_SHARED_MESHES();
+  const auto& ctx = context();
+  const Mesh suspect = mm::triangulate(mm::subdivide(ctx.control(), 2));
+  const auto r = mm::resynchronize(ctx, suspect);
+  EXPECT_EQ(r.method, "subdivided");
+  EXPECT_EQ(r.level, 2);
+  EXPECT_FALSE(r.order_recovered);
+  EXPECT_LT(max_error(r.points, ctx.control().points), 1e-11);
+}
+
+TEST(Resync, ShuffledSubdividedCopyIsMatchedByNearestNeighbour) {
+  MM_REQUIRE_SHARED_MESHES();
+  const auto& ctx = context();
+  const Mesh suspect = shuffled(mm::subdivide(ctx.control(), 2), 11);
+  const auto r = mm::resynchronize(ctx, suspect);
+  EXPECT_EQ(r.method, "subdivided");
+  EXPECT_EQ(r.level, 2);
+  EXPECT_TRUE(r.order_recovered);
+  EXPECT_EQ(r.matched_fraction, 1.0);
+  EXPECT_LT(max_error(r.points, ctx.control().points), 1e-11);
+}
+
+TEST(Resync, MovedShuffledCopyIsAlignedBack) {
+  MM_REQUIRE_SHARED_MESHES();
+  const auto& ctx = context();
+  const auto s = some_similarity();
+  Mesh suspect = shuffled(mm::subdivide(ctx.control(), 2), 12);
+  suspect.points = s.apply(suspect.points);
+  const auto r = mm::resynchronize(ctx, suspect);
+  EXPECT_EQ(r.method, "subdivided");
+  EXPECT_TRUE(r.order_recovered);
+  EXPECT_LT(max_error(r.points, ctx.control().points), 1e-10);
+  EXPECT_NEAR(r.to_control_frame.scale, 1 / s.scale, 1e-12);
+  EXPECT_LT((r.to_control_frame.after(s).rotation - Eigen::Matrix3d::Identity()).norm(), 1e-10);
+}
+
+TEST(Resync, MovedCopyInOrderIsAlignedBack) {
+  MM_REQUIRE_SHARED_MESHES();
+  const auto& ctx = context();
+  const auto s = some_similarity();
+  Mesh suspect = mm::subdivide(ctx.control(), 3);
+  suspect.points = s.apply(suspect.points);
+  const auto r = mm::resynchronize(ctx, suspect);
+  EXPECT_EQ(r.level, 3);
+  EXPECT_LT(max_error(r.points, ctx.control().points), 1e-10);
+}
+
+TEST(Resync, PolyhedronWithReorderedFaces) {
+  MM_REQUIRE_SHARED_MESHES();
+  const auto& ctx = context();
+  Mesh suspect = ctx.control();
+  std::mt19937_64 rng(3);
+  for (auto& f : suspect.faces) std::rotate(f.begin(), f.begin() + static_cast<long>(rng() % f.size()), f.end());
+  std::shuffle(suspect.faces.begin(), suspect.faces.end(), rng);
+  const auto r = mm::resynchronize(ctx, suspect);
+  EXPECT_EQ(r.method, "polyhedron");
+  EXPECT_EQ(r.level, 0);
+  EXPECT_FALSE(r.order_recovered);
+  EXPECT_LT(max_error(r.points, ctx.control().points), 1e-12);
+
+  const auto q = mm::resynchronize(ctx, shuffled(ctx.control(), 5));
+  EXPECT_EQ(q.method, "polyhedron");
+  EXPECT_TRUE(q.order_recovered);
+  EXPECT_LT(max_error(q.points, ctx.control().points), 1e-12);
+}
+
+TEST(Resync, NoiseIsAveragedOverTheRefinedVertices) {
+  MM_REQUIRE_SHARED_MESHES();
+  const auto& ctx = context();
+  const double sigma = 1e-3;  // unit-box units: 1/1000 of the part
+  Mesh suspect = mm::subdivide(ctx.control(), 3);
+  std::mt19937_64 rng(21);
+  std::normal_distribution<double> noise(0.0, sigma);
+  for (Eigen::Index i = 0; i < suspect.points.rows(); ++i)
+    for (int c = 0; c < 3; ++c) suspect.points(i, c) += noise(rng);
+  const auto r = mm::resynchronize(ctx, suspect);
+  EXPECT_EQ(r.level, 3);
+  const double rms = std::sqrt((r.points - ctx.control().points).rowwise().squaredNorm().mean());
+  // Least squares gives each control point the noise variance sigma^2 (S^T S)^-1_ii per axis:
+  // far below sigma where many refined vertices see a control point, less so at corners, where
+  // S is a smoothing (ill-conditioned) map.
+  const auto& S = ctx.subdivision(3).S;
+  const Eigen::SparseMatrix<double> StS = Eigen::SparseMatrix<double>(S.transpose()) * S;
+  const Eigen::MatrixXd inv = Eigen::MatrixXd(StS).inverse();
+  const double expected = sigma * std::sqrt(3.0 * inv.diagonal().mean());
+  EXPECT_NEAR(rms, expected, 0.15 * expected);
+  EXPECT_LT(rms, 0.7 * sigma * std::sqrt(3.0));
+  EXPECT_NEAR(r.residual_rms * ctx.diagonal(), sigma * std::sqrt(3.0), 0.2 * sigma * std::sqrt(3.0));
+}
+
+TEST(Resync, UnusableSuspectsAreRejectedByName) {
+  MM_REQUIRE_SHARED_MESHES();
+  const auto& ctx = context();
+  mm::ResyncOptions o;
+  o.source = "leak.stl";
+  EXPECT_THROW(mm::resynchronize(ctx, Mesh{}, o), mm::InputError);
+  Mesh nan = mm::subdivide(ctx.control(), 1);
+  nan.points(5, 1) = std::numeric_limits<double>::quiet_NaN();
+  try {
+    mm::resynchronize(ctx, nan, o);
+    FAIL() << "non-finite suspect accepted";
+  } catch (const mm::InputError& e) {
+    EXPECT_EQ(e.source(), "leak.stl");
+    EXPECT_NE(std::string(e.what()).find("non-finite"), std::string::npos);
+  }
+  Mesh bad = mm::subdivide(ctx.control(), 1);
+  bad.faces[0][0] = bad.num_vertices();
+  EXPECT_THROW(mm::resynchronize(ctx, bad, o), mm::InputError);
+}

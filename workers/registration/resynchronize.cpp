@@ -1,0 +1,396 @@
+#include "registration/resynchronize.h"
+
+#include <Eigen/Geometry>
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <random>
+#include <stdexcept>
+
+#include "fitting/closest_point.h"
+#include "registration/nearest_neighbours.h"
+
+namespace mm {
+
+namespace {
+
+using SpMat = Eigen::SparseMatrix<double>;  // column-major for the factorisation
+using Trip = Eigen::Triplet<double>;
+
+double uniform(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
+
+double diagonal_of(const Points& p) {
+  if (p.rows() == 0) return 0;
+  return (p.colwise().maxCoeff() - p.colwise().minCoeff()).norm();
+}
+
+// Area-weighted points on a triangle soup, seeded.
+Points sample_area(const Points& points, const std::vector<std::array<int, 3>>& tris, int count,
+                   std::uint64_t seed) {
+  std::vector<double> cumulative;
+  cumulative.reserve(tris.size());
+  double total = 0;
+  for (const auto& t : tris) {
+    const Eigen::Vector3d a = points.row(t[0]), b = points.row(t[1]), c = points.row(t[2]);
+    total += 0.5 * (b - a).cross(c - a).norm();
+    cumulative.push_back(total);
+  }
+  if (!(total > 0) || count <= 0) return Points(0, 3);
+  Points out(count, 3);
+  std::mt19937_64 rng(seed);
+  for (int k = 0; k < count; ++k) {
+    const double r = uniform(rng) * total;
+    const size_t t = std::min(cumulative.size() - 1,
+                              static_cast<size_t>(std::upper_bound(cumulative.begin(), cumulative.end(), r) -
+                                                  cumulative.begin()));
+    double u = uniform(rng), v = uniform(rng);
+    if (u + v > 1) u = 1 - u, v = 1 - v;
+    const auto& f = tris[t];
+    const Eigen::RowVector3d a = points.row(f[0]), b = points.row(f[1]), c = points.row(f[2]);
+    out.row(k) = a + u * (b - a) + v * (c - a);
+  }
+  return out;
+}
+
+Points strided(const Points& p, int count) {
+  if (count <= 0 || p.rows() <= count) return p;
+  Points out(count, 3);
+  for (int k = 0; k < count; ++k) out.row(k) = p.row(static_cast<Eigen::Index>(static_cast<long long>(k) * p.rows() / count));
+  return out;
+}
+
+Points stack(const Points& a, const Points& b) {
+  Points out(a.rows() + b.rows(), 3);
+  out << a, b;
+  return out;
+}
+
+}  // namespace
+
+struct LevelData {
+  SubdivisionOperator op;  // level 0: the identity on the control
+  Points points;           // original refined positions
+  Eigen::SimplicialLDLT<SpMat> normal;  // S^T S (levels >= 1)
+  std::unique_ptr<PointGrid> grid;
+  std::vector<int> face_offsets, face_list;  // vertex -> incident refined faces
+};
+
+struct ResyncContext::Impl {
+  Mesh control;
+  int max_level = 0, fit_level = 0;
+  double diagonal = 0;
+  std::vector<std::unique_ptr<LevelData>> levels;
+  std::vector<std::array<int, 3>> fit_tris;  // triangles of the refined original at fit_level
+  std::unique_ptr<TriangleIndex> fit_tree;
+  Points fit_samples;  // area-weighted samples of that surface (moments, reverse ICP pairs)
+};
+
+ResyncContext::ResyncContext(const Mesh& control, int max_level, int fit_level) : impl_(std::make_unique<Impl>()) {
+  if (max_level < 0 || max_level > kMaxSubdivisionLevels)
+    throw std::invalid_argument("resync: max_level outside [0, " + std::to_string(kMaxSubdivisionLevels) + "]");
+  if (control.num_vertices() == 0 || control.faces.empty())
+    throw InputError("control polyhedron", "no vertices or no faces");
+  if (!control.points.allFinite()) throw InputError("control polyhedron", "non-finite coordinates");
+  Impl& m = *impl_;
+  m.control = control;
+  m.max_level = max_level;
+  m.diagonal = diagonal_of(control.points);
+  if (!(m.diagonal > 0)) throw InputError("control polyhedron", "degenerate bounding box");
+  for (int l = 0; l <= max_level; ++l) {
+    auto d = std::make_unique<LevelData>();
+    d->op = build_subdivision(control, l);
+    d->points = l == 0 ? control.points : apply_subdivision(d->op, control.points);
+    if (l > 0) {
+      const SpMat S = d->op.S;
+      const SpMat StS = SpMat(S.transpose()) * S;
+      d->normal.compute(StS);
+      if (d->normal.info() != Eigen::Success)
+        throw InputError("control polyhedron", "subdivision normal equations are singular at level " + std::to_string(l));
+    }
+    d->grid = std::make_unique<PointGrid>(d->points);
+    const int nv = static_cast<int>(d->points.rows());
+    d->face_offsets.assign(static_cast<size_t>(nv) + 1, 0);
+    for (const auto& f : d->op.refined.faces)
+      for (int v : f) ++d->face_offsets[static_cast<size_t>(v) + 1];
+    for (int v = 0; v < nv; ++v) d->face_offsets[v + 1] += d->face_offsets[v];
+    d->face_list.assign(static_cast<size_t>(d->face_offsets.back()), 0);
+    std::vector<int> fill(d->face_offsets.begin(), d->face_offsets.end() - 1);
+    for (int f = 0; f < static_cast<int>(d->op.refined.faces.size()); ++f)
+      for (int v : d->op.refined.faces[f]) d->face_list[fill[v]++] = f;
+    m.levels.push_back(std::move(d));
+  }
+  m.fit_level = std::clamp(fit_level, std::min(1, max_level), max_level);
+  const LevelData& fit = *m.levels[m.fit_level];
+  m.fit_tris = triangle_list(fit.op.refined);
+  m.fit_tree = std::make_unique<TriangleIndex>(fit.points, m.fit_tris);
+  m.fit_samples = sample_area(fit.points, m.fit_tris, 20000, 7);
+}
+
+ResyncContext::~ResyncContext() = default;
+ResyncContext::ResyncContext(ResyncContext&&) noexcept = default;
+ResyncContext& ResyncContext::operator=(ResyncContext&&) noexcept = default;
+const Mesh& ResyncContext::control() const { return impl_->control; }
+int ResyncContext::max_level() const { return impl_->max_level; }
+int ResyncContext::fit_level() const { return impl_->fit_level; }
+double ResyncContext::diagonal() const { return impl_->diagonal; }
+const SubdivisionOperator& ResyncContext::subdivision(int level) const { return impl_->levels.at(level)->op; }
+const Points& ResyncContext::refined_points(int level) const { return impl_->levels.at(level)->points; }
+
+namespace {
+
+// Every suspect face lies within one refined face (equal, or a triangle of a split quad), and
+// every refined face is covered: the same surface with the same vertex numbering.
+bool faces_consistent(const LevelData& level, const Mesh& suspect) {
+  std::vector<char> covered(level.op.refined.faces.size(), 0);
+  for (const auto& f : suspect.faces) {
+    bool found = false;
+    for (int k = level.face_offsets[f[0]]; k < level.face_offsets[f[0] + 1] && !found; ++k) {
+      const int rf = level.face_list[k];
+      const auto& r = level.op.refined.faces[rf];
+      if (r.size() < f.size()) continue;
+      bool all = true;
+      for (int v : f) all = all && std::find(r.begin(), r.end(), v) != r.end();
+      if (all) found = true, covered[rf] = 1;
+    }
+    if (!found) return false;
+  }
+  return std::all_of(covered.begin(), covered.end(), [](char c) { return c != 0; });
+}
+
+// Least-squares control points from refined positions p (rows matched to refined vertices).
+Points solve_level(const LevelData& level, int l, const Points& p) {
+  if (l == 0) return p;
+  const Eigen::MatrixXd rhs = SpMat(level.op.S.transpose()) * p;
+  Points x = level.normal.solve(rhs);
+  return x;
+}
+
+// The same for a subset of refined rows (order-free matching that missed some vertices).
+Points solve_rows(const LevelData& level, const std::vector<int>& rows, const Points& p,
+                  const Points& prior) {
+  std::vector<Trip> t;
+  for (size_t r = 0; r < rows.size(); ++r)
+    for (SparseOperator::InnerIterator it(level.op.S, rows[r]); it; ++it)
+      t.emplace_back(static_cast<int>(r), static_cast<int>(it.col()), it.value());
+  SpMat A(static_cast<Eigen::Index>(rows.size()), level.op.S.cols());
+  A.setFromTriplets(t.begin(), t.end());
+  SpMat M = SpMat(A.transpose()) * A;
+  // A vanishing pull towards the original keeps control points without matched rows defined.
+  const double eps = 1e-9 * std::max(1.0, M.diagonal().mean());
+  SpMat I(M.rows(), M.cols());
+  I.setIdentity();
+  M += eps * I;
+  Eigen::SimplicialLDLT<SpMat> solver(M);
+  if (solver.info() != Eigen::Success) throw std::runtime_error("resync: matched normal equations are singular");
+  const Eigen::MatrixXd rhs = SpMat(A.transpose()) * p + eps * prior;
+  return solver.solve(rhs);
+}
+
+double rms_rows(const Points& a, const Points& b) {
+  if (a.rows() == 0) return 0;
+  return std::sqrt((a - b).rowwise().squaredNorm().mean());
+}
+
+struct Matching {
+  Similarity transform;
+  std::vector<int> suspect_of;  // per refined vertex: matched suspect vertex or -1
+  int matched = 0;
+};
+
+// Mutual nearest neighbours between the aligned suspect vertices and the original refined ones.
+void mutual_pairs(const LevelData& level, const Points& suspect, Matching* m) {
+  const Points cur = m->transform.apply(suspect);
+  const PointGrid suspect_grid(cur);
+  const int nr = static_cast<int>(level.points.rows());
+  m->suspect_of.assign(static_cast<size_t>(nr), -1);
+  m->matched = 0;
+  for (int j = 0; j < nr; ++j) {
+    const int i = suspect_grid.nearest(level.points.row(j).transpose());
+    if (i >= 0 && level.grid->nearest(cur.row(i).transpose()) == j) {
+      m->suspect_of[j] = i;
+      ++m->matched;
+    }
+  }
+}
+
+Matching match_vertices(const LevelData& level, const Points& suspect, const ResyncOptions& o) {
+  Matching m;
+  if (o.align) {
+    const PointGrid& grid = *level.grid;
+    ClosestPoint closest = [&grid](const Eigen::Vector3d& q) {
+      return Eigen::Vector3d(grid.points().row(grid.nearest(q)).transpose());
+    };
+    const Points moving = strided(suspect, o.alignment_samples);
+    const Points fixed = strided(level.points, o.alignment_samples);
+    m.transform = align_similarity(moving, moving, fixed, closest, o.icp).transform;
+  }
+  // Refit the similarity on all mutual pairs (7 DOF from every vertex), then pair again.
+  for (int round = 0; round < 2; ++round) {
+    mutual_pairs(level, suspect, &m);
+    if (!o.align || m.matched < 3) break;
+    Points src(m.matched, 3), dst(m.matched, 3);
+    int k = 0;
+    for (size_t j = 0; j < m.suspect_of.size(); ++j)
+      if (m.suspect_of[j] >= 0) src.row(k) = suspect.row(m.suspect_of[j]), dst.row(k++) = level.points.row(j);
+    m.transform = fit_similarity(src, dst);
+  }
+  return m;
+}
+
+Resynchronized from_matching(const ResyncContext::Impl& ctx, const LevelData& level, int l,
+                             const Points& suspect, const Matching& m) {
+  Resynchronized r;
+  r.method = l == 0 ? "polyhedron" : "subdivided";
+  r.level = l;
+  r.order_recovered = true;
+  r.to_control_frame = m.transform;
+  const Points cur = m.transform.apply(suspect);
+  const int nr = static_cast<int>(level.points.rows());
+  r.matched_fraction = static_cast<double>(m.matched) / nr;
+  std::vector<int> rows;
+  Points p(m.matched, 3);
+  for (int j = 0; j < nr; ++j)
+    if (m.suspect_of[j] >= 0) {
+      p.row(static_cast<Eigen::Index>(rows.size())) = cur.row(m.suspect_of[j]);
+      rows.push_back(j);
+    }
+  if (m.matched == nr) {
+    r.points = solve_level(level, l, p);
+  } else {
+    r.points = solve_rows(level, rows, p, ctx.control.points);
+  }
+  // Level 0: what separates the suspect from the original (mark, quantisation, noise).
+  const Points refined = l == 0 ? level.points : apply_subdivision(level.op, r.points);
+  Points fitted(m.matched, 3);
+  for (size_t k = 0; k < rows.size(); ++k) fitted.row(static_cast<Eigen::Index>(k)) = refined.row(rows[k]);
+  r.residual_rms = rms_rows(fitted, p) / ctx.diagonal;
+  return r;
+}
+
+Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, const ResyncOptions& o) {
+  Resynchronized r;
+  r.method = "surface-fit";
+  const auto tris = triangle_list(suspect);
+  const TriangleIndex suspect_tree(suspect.points, tris);
+  if (suspect_tree.empty()) throw InputError(o.source, "no face of positive area");
+  const Points samples = stack(suspect.points, sample_area(suspect.points, tris, o.suspect_samples, o.seed));
+
+  if (o.align) {
+    const TriangleIndex& tree = *ctx.fit_tree;
+    ClosestPoint closest = [&tree](const Eigen::Vector3d& q) { return tree.closest(q).point; };
+    const Points moving = sample_area(suspect.points, tris, o.alignment_samples, o.seed + 1);
+    const Points fixed = strided(ctx.fit_samples, o.alignment_samples);
+    r.to_control_frame = align_similarity(moving, moving, fixed, closest, o.icp).transform;
+  }
+  const Similarity& T = r.to_control_frame;
+  const Similarity Tinv = T.inverse();
+  const LevelData& level = *ctx.levels[ctx.fit_level];
+  const SparseOperator& S = level.op.S;
+  const int n = ctx.control.num_vertices();
+  const int nr = static_cast<int>(S.rows());
+  const double max_d = o.max_distance * ctx.diagonal;
+
+  // Suspect samples -> original refined surface: fixed for all rounds (the mark moves the
+  // surface by far less than the sample spacing).
+  std::vector<Trip> a_rows;
+  std::vector<Eigen::RowVector3d> a_targets;
+  const Points moved = T.apply(samples);
+  for (Eigen::Index k = 0; k < moved.rows(); ++k) {
+    const Eigen::Vector3d q = moved.row(k).transpose();
+    const TriangleHit h = ctx.fit_tree->closest(q);
+    if (!(h.distance <= max_d)) continue;
+    const auto& t = ctx.fit_tris[h.triangle];
+    const int row = static_cast<int>(a_targets.size());
+    for (int c = 0; c < 3; ++c)
+      if (h.barycentric[c] != 0) a_rows.emplace_back(row, t[c], h.barycentric[c]);
+    a_targets.push_back(moved.row(k));
+  }
+  r.matched_fraction = static_cast<double>(a_targets.size()) / static_cast<double>(moved.rows());
+  if (a_targets.size() < 3) throw InputError(o.source, "nothing matched the original surface after alignment");
+
+  Points x = ctx.control.points;
+  double residual = 0;
+  for (int it = 0; it < std::max(1, o.fit_iterations); ++it) {
+    // Refined vertices of the current estimate -> suspect surface.
+    const Points R = apply_subdivision(level.op, x);
+    std::vector<Trip> rows = a_rows;
+    std::vector<Eigen::RowVector3d> targets = a_targets;
+    for (int v = 0; v < nr; ++v) {
+      const Eigen::RowVector3d pv = R.row(v);
+      const TriangleHit h = suspect_tree.closest(Tinv.apply(pv).transpose());
+      const Eigen::RowVector3d c = T.apply(Eigen::RowVector3d(h.point.transpose()));
+      if (!((c - pv).norm() <= max_d)) continue;
+      rows.emplace_back(static_cast<int>(targets.size()), v, 1.0);
+      targets.push_back(c);
+    }
+    const int m = static_cast<int>(targets.size());
+    Eigen::SparseMatrix<double, Eigen::RowMajor> B(m, nr);
+    B.setFromTriplets(rows.begin(), rows.end());
+    const SpMat A = B * S;
+    Eigen::MatrixXd P(m, 3);
+    for (int k = 0; k < m; ++k) P.row(k) = targets[k];
+    SpMat M = SpMat(A.transpose()) * A;
+    const double lambda = o.regularization * static_cast<double>(m) / n;
+    SpMat I(n, n);
+    I.setIdentity();
+    M += lambda * I;
+    const Eigen::MatrixXd rhs = SpMat(A.transpose()) * P + lambda * ctx.control.points;
+    Eigen::SimplicialLDLT<SpMat> solver(M);
+    if (solver.info() != Eigen::Success) throw std::runtime_error("resync: surface fit system is singular");
+    x = solver.solve(rhs);
+    residual = rms_rows(A * x, P);
+  }
+  r.points = x;
+  r.residual_rms = residual / ctx.diagonal;
+  return r;
+}
+
+void check_suspect(const Mesh& suspect, const std::string& source) {
+  if (suspect.num_vertices() == 0) throw InputError(source, "no vertices");
+  if (suspect.faces.empty()) throw InputError(source, "no faces");
+  if (!suspect.points.allFinite()) throw InputError(source, "non-finite coordinates");
+  for (const auto& f : suspect.faces) {
+    if (f.size() < 3) throw InputError(source, "a face with fewer than 3 vertices");
+    for (int v : f)
+      if (v < 0 || v >= suspect.num_vertices()) throw InputError(source, "face index out of range");
+  }
+}
+
+}  // namespace
+
+Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, const ResyncOptions& o) {
+  check_suspect(suspect, o.source);
+  const ResyncContext::Impl& ctx = context.impl();
+  const int top = std::min(o.max_level, ctx.max_level);
+  const int ns = suspect.num_vertices();
+
+  // Same numbering: vertices correspond by index.
+  for (int l = 0; l <= top; ++l) {
+    const LevelData& level = *ctx.levels[l];
+    if (level.points.rows() != ns || !faces_consistent(level, suspect)) continue;
+    Resynchronized r;
+    r.method = l == 0 ? "polyhedron" : "subdivided";
+    r.level = l;
+    if (o.align) r.to_control_frame = fit_similarity(suspect.points, level.points);
+    const Points p = r.to_control_frame.apply(suspect.points);
+    r.points = solve_level(level, l, p);
+    // Level 0: what separates the suspect from the original (mark, quantisation, noise).
+    const Points refined = l == 0 ? level.points : apply_subdivision(level.op, r.points);
+    r.residual_rms = rms_rows(refined, p) / ctx.diagonal;
+    return r;
+  }
+  // Same vertices, numbering lost (STL welding, re-export): mutual nearest neighbours.
+  for (int l = 0; l <= top; ++l) {
+    const LevelData& level = *ctx.levels[l];
+    const double nr = static_cast<double>(level.points.rows());
+    if (std::abs(ns - nr) > o.count_tolerance * nr) continue;
+    const Matching m = match_vertices(level, suspect.points, o);
+    if (m.matched < o.min_matched_fraction * nr) continue;
+    return from_matching(ctx, level, l, suspect.points, m);
+  }
+  return surface_fit(ctx, suspect, o);
+}
+
+}  // namespace mm

@@ -1,0 +1,98 @@
+// Resynchronisation: a suspect mesh brought back to the original control polyhedron's vertex
+// order and frame, so non-blind extraction (watermark/watermark.h, extract) can compare the two
+// vertex by vertex. The mark lives in the control polyhedron's spectrum, so what is recovered is
+// always a control polyhedron: control.num_vertices() points in the control's order.
+//
+// Suspects handled, tried in this order:
+//  - "polyhedron": the (watermarked) control polyhedron itself, maybe quantised by the codec,
+//    rescaled, rotated or shifted. Same vertex count and faces as sets (the codec reorders faces
+//    and rotates each face's first vertex): vertices correspond by index.
+//  - "subdivided": the control polyhedron refined L levels by build_subdivision/subdivide, maybe
+//    triangulated, noisy, moved. Vertex count equal to the level-L count: with consistent faces
+//    vertices correspond by index; otherwise (an STL file welds vertices and numbers them by first
+//    appearance) each is matched to its mutual nearest original refined vertex after alignment.
+//    Then x solves min |S_L x - p| through the precomputed Cholesky factor of S_L^T S_L, which
+//    averages noise over the 4^L-fold redundant refined vertices. The same matching at L = 0
+//    recognises a polyhedron whose order was lost.
+//  - "surface-fit": anything else (remeshed, re-tessellated). Similarity ICP against the original
+//    refined surface, then one linear least-squares fit of the control points with the
+//    original's topology, closest-point pairs both ways (as fitting/fit_control_points), pulled
+//    towards the original control points rather than smoothed: a Laplacian would erase the
+//    high-frequency mark. Only the mark's normal component is observable on a remeshed surface.
+// Alignment always uses 7 degrees of freedom (scale, rotation, translation) fitted to many
+// correspondences, so it cannot absorb the mark beyond its projection on those 7 directions.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "meshio/mesh.h"
+#include "registration/align_similarity.h"
+#include "subdivision/subdivide.h"
+
+namespace mm {
+
+struct ResyncOptions {
+  int max_level = 4;             // highest subdivision level recognised (capped by the context's)
+  bool align = true;             // fit a similarity; false: the suspect is in the control's frame
+  std::string source = "suspect mesh";  // names the suspect in InputError messages
+  // Order-free matching ("subdivided"/"polyhedron" with lost order): accepted when mutual
+  // nearest-neighbour pairs cover at least this fraction of the original refined vertices.
+  double min_matched_fraction = 0.9;
+  double count_tolerance = 0.02;  // relative vertex-count difference still tried by matching
+  IcpOptions icp;
+  // Surface fit.
+  int suspect_samples = 20000;   // area-weighted samples of the suspect surface (plus its vertices)
+  int alignment_samples = 4000;  // samples of each surface used by the similarity ICP
+  double regularization = 0.05;  // pull towards the original control points, per data weight
+  double max_distance = 0.02;    // correspondences farther than this x diagonal are ignored
+  int fit_iterations = 2;        // re-pairing rounds of the refined vertices with the suspect
+  std::uint64_t seed = 1;        // sampling is deterministic for a given seed
+};
+
+struct Resynchronized {
+  Points points;             // control.num_vertices() x 3, in the control's frame and vertex order
+  std::string method;        // "polyhedron", "subdivided", "surface-fit"
+  int level = 0;             // subdivision level recognised ("subdivided"), else 0
+  double residual_rms = 0;   // RMS of the data the solution could not explain (suspect points or
+                             // closest-point distances, after alignment) / control bbox diagonal
+  double matched_fraction = 1;   // suspect data used: matched vertices or accepted samples
+  Similarity to_control_frame;   // maps the suspect into the control's frame
+  bool order_recovered = false;  // vertices matched by nearest neighbour (order was lost)
+};
+
+// Everything that depends only on the original control polyhedron (subdivision operators and
+// factorised normal equations per level, refined original surfaces, AABB trees): built once per
+// asset, immutable afterwards, safe to share between threads.
+class ResyncContext {
+ public:
+  // control: original polyhedron with creases/corners, in the frame results are wanted in.
+  // fit_level: subdivision level of the original surface that remeshed suspects are fitted
+  // against (clamped to [1, max_level]). Throws InputError for an unusable control mesh and
+  // std::invalid_argument for max_level outside [0, kMaxSubdivisionLevels].
+  ResyncContext(const Mesh& control, int max_level = 4, int fit_level = 3);
+  ~ResyncContext();
+  ResyncContext(ResyncContext&&) noexcept;
+  ResyncContext& operator=(ResyncContext&&) noexcept;
+
+  const Mesh& control() const;
+  int max_level() const;
+  int fit_level() const;
+  double diagonal() const;  // control bounding-box diagonal
+  // Level 0 is the control itself; levels 1..max_level() the refined original.
+  const SubdivisionOperator& subdivision(int level) const;
+  const Points& refined_points(int level) const;
+
+  struct Impl;
+  const Impl& impl() const { return *impl_; }
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// Throws InputError(options.source, reason) for unusable suspects (no vertices or faces,
+// non-finite coordinates, bad indices, nothing matched).
+Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect,
+                             const ResyncOptions& options = {});
+
+}  // namespace mm
