@@ -17,12 +17,19 @@
 namespace mm::cli {
 
 std::vector<std::uint8_t> read_file_bytes(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) throw InputError(path, "is a directory");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  std::vector<std::uint8_t> bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  if (in.bad()) throw InputError(path, "read error");
+  return bytes;
 }
 
-void write_file_atomic(const std::string& path, const std::string& data, unsigned mode) {
+namespace {
+
+// Writes `data` to a fresh temporary file beside `path` with `mode`, fsynced; returns its name.
+std::string write_temporary(const std::string& path, const std::string& data, unsigned mode) {
   namespace fs = std::filesystem;
   fs::path target(path);
   fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
@@ -38,14 +45,35 @@ void write_file_atomic(const std::string& path, const std::string& data, unsigne
     ok = w > 0;
     if (ok) { p += w; left -= static_cast<std::size_t>(w); }
   }
-  int err = errno;
-  ok = ok && fsync(fd) == 0;
+  int err = ok ? 0 : errno;
+  if (ok && fsync(fd) != 0) ok = false, err = errno;
   ::close(fd);
-  if (!ok || std::rename(tmpl.c_str(), path.c_str()) != 0) {
-    err = err ? err : errno;
+  if (!ok) {
     ::unlink(tmpl.c_str());
+    throw InputError(path, std::string("cannot write: ") + std::strerror(err ? err : EIO));
+  }
+  return tmpl;
+}
+
+}  // namespace
+
+void write_file_atomic(const std::string& path, const std::string& data, unsigned mode) {
+  const std::string tmp = write_temporary(path, data, mode);
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
     throw InputError(path, std::string("cannot write: ") + std::strerror(err));
   }
+}
+
+bool write_file_exclusive(const std::string& path, const std::string& data, unsigned mode) {
+  const std::string tmp = write_temporary(path, data, mode);
+  const int rc = ::link(tmp.c_str(), path.c_str());
+  const int err = errno;
+  ::unlink(tmp.c_str());
+  if (rc == 0) return true;
+  if (err == EEXIST) return false;
+  throw InputError(path, std::string("cannot write: ") + std::strerror(err));
 }
 
 std::string sha256_hex(const std::uint8_t* data, std::size_t size) {

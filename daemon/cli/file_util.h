@@ -12,6 +12,11 @@ std::vector<std::uint8_t> read_file_bytes(const std::string& path);  // throws I
 // `mode` is applied before the data is written (0600 for secrets).
 void write_file_atomic(const std::string& path, const std::string& data, unsigned mode = 0644);
 
+// The same, but never replaces an existing file: the temporary is hard-linked to `path`, which
+// fails if anything is there, even a file created a moment earlier. Returns false (and leaves
+// nothing behind) when `path` exists; throws InputError for other failures.
+bool write_file_exclusive(const std::string& path, const std::string& data, unsigned mode = 0600);
+
 std::string sha256_hex(const std::uint8_t* data, std::size_t size);
 std::string sha256_file_hex(const std::string& path);
 

@@ -1,0 +1,70 @@
+#include "cli/mesh_files.h"
+
+#include <cctype>
+#include <string_view>
+
+#include "cli/file_util.h"
+#include "codec/stream.h"
+#include "meshio/read_mesh.h"
+
+namespace mm::cli {
+namespace {
+
+std::string lower_extension(const std::string& path) {
+  const auto slash = path.find_last_of('/');
+  const auto dot = path.find_last_of('.');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
+  std::string ext = path.substr(dot + 1);
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
+}
+
+}  // namespace
+
+bool is_stream_path(const std::string& path) { return lower_extension(path) == "mmc"; }
+
+bool is_mesh_path(const std::string& path) {
+  const std::string e = lower_extension(path);
+  return e == "stl" || e == "obj" || e == "off" || e == "ply";
+}
+
+InputFile load_input(const std::string& path) {
+  if (!is_stream_path(path) && !is_mesh_path(path))
+    throw InputError(path, "unknown file type (expected .stl, .obj, .off, .ply or .mmc)");
+  InputFile in;
+  const std::vector<std::uint8_t> bytes = read_file_bytes(path);
+  in.sha256 = sha256_hex(bytes.data(), bytes.size());
+  if (is_stream_path(path)) {
+    DecodedStream s = decode(bytes, path);
+    in.mesh = std::move(s.mesh);
+    in.stream = true;
+    in.quant_bits = s.quantization.bits;
+    in.metadata = std::move(s.metadata);
+  } else {
+    const std::string_view view(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+    in.mesh = parse_mesh(view, lower_extension(path), path);
+  }
+  return in;
+}
+
+void write_output(const Mesh& mesh, const std::string& path, int quant_bits,
+                  const std::map<std::string, std::string>& metadata) {
+  if (is_stream_path(path)) {
+    CodecParams params;
+    params.quant_bits = quant_bits;
+    params.metadata = metadata;
+    std::vector<std::uint8_t> bytes;
+    try {
+      bytes = encode(mesh, params);
+    } catch (const InputError& e) {
+      throw InputError(path, "cannot encode as a stream: " + e.reason());
+    }
+    write_stream_file(path, bytes);
+  } else if (is_mesh_path(path)) {
+    write_mesh(mesh, path);
+  } else {
+    throw InputError(path, "unknown output type (expected .stl, .obj, .off, .ply or .mmc)");
+  }
+}
+
+}  // namespace mm::cli
