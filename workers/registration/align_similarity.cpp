@@ -64,6 +64,35 @@ Similarity fit_similarity(const Points& src, const Points& dst, const Eigen::Vec
   return out;
 }
 
+Similarity fit_similarity_preserving_mark(const Mesh& original, const Points& moved) {
+  const Eigen::Index n = original.points.rows();
+  if (moved.rows() != n) throw std::invalid_argument("fit_similarity_preserving_mark: row counts differ");
+  const auto edges = unique_edges(original);
+  if (edges.empty()) throw std::invalid_argument("fit_similarity_preserving_mark: mesh without edges");
+  // Delta coordinates K x, one row per vertex.
+  Points d0 = Points::Zero(n, 3), ds = Points::Zero(n, 3);
+  for (auto [a, b] : edges) {
+    const Eigen::RowVector3d e0 = original.points.row(a) - original.points.row(b);
+    const Eigen::RowVector3d es = moved.row(a) - moved.row(b);
+    d0.row(a) += e0, d0.row(b) -= e0;
+    ds.row(a) += es, ds.row(b) -= es;
+  }
+  // moved ~ s' original R'^T + t': orthogonal Procrustes with scale, no translation term
+  // (K 1 = 0), then inverted.
+  const Eigen::Matrix3d cov = ds.transpose() * d0;
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Vector3d sign(1, 1, 1);
+  if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0) sign[2] = -1;
+  Similarity forward;
+  forward.rotation = svd.matrixU() * sign.asDiagonal() * svd.matrixV().transpose();
+  const double var = d0.squaredNorm();
+  forward.scale = var > 0 ? svd.singularValues().dot(sign) / var : 1.0;
+  if (!(forward.scale > 0) || !std::isfinite(forward.scale)) forward.scale = 1.0;
+  forward.translation = moved.colwise().mean() -
+                        forward.scale * original.points.colwise().mean() * forward.rotation.transpose();
+  return forward.inverse();
+}
+
 namespace {
 
 Points strided(const Points& p, int count) {

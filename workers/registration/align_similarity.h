@@ -29,6 +29,18 @@ struct Similarity {
 // for mismatched sizes or fewer than 3 rows of positive weight.
 Similarity fit_similarity(const Points& src, const Points& dst, const Eigen::VectorXd* weights = nullptr);
 
+// Similarity mapping `moved` -- the vertices of `original` in another frame, plus a small
+// displacement such as a watermark and noise -- back onto `original`, estimated so that the
+// displacement is not absorbed. A plain least-squares fit weighs each spectral coefficient by its
+// square, so the few largest, lowest-frequency ones (which Method 1 scales by 1 +- a) decide the
+// scale and rotation and take a sizeable share of the mark with them. Here rotation and scale
+// come from the Laplacian coordinates K x (K = D - A of original's connectivity: coefficient k
+// weighted by its eigenvalue, which flattens the spectrum), regressing the copy on the original
+// because noise and mark sit in the copy; the translation comes from the centroids, which the
+// mark never moves (the zero-eigenvalue coefficients are left alone). Throws
+// std::invalid_argument for a row count mismatch or a mesh without edges.
+Similarity fit_similarity_preserving_mark(const Mesh& original, const Points& moved);
+
 // Closest point of the fixed shape (a point set or a surface) to a query.
 using ClosestPoint = std::function<Eigen::Vector3d(const Eigen::Vector3d&)>;
 

@@ -292,31 +292,42 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
   const int nr = static_cast<int>(S.rows());
   const double max_d = o.max_distance * ctx.diagonal;
 
-  // Suspect samples -> original refined surface: fixed for all rounds (the mark moves the
-  // surface by far less than the sample spacing).
-  std::vector<Trip> a_rows;
-  std::vector<Eigen::RowVector3d> a_targets;
   const Points moved = T.apply(samples);
-  for (Eigen::Index k = 0; k < moved.rows(); ++k) {
-    const Eigen::Vector3d q = moved.row(k).transpose();
-    const TriangleHit h = ctx.fit_tree->closest(q);
-    if (!(h.distance <= max_d)) continue;
-    const auto& t = ctx.fit_tris[h.triangle];
-    const int row = static_cast<int>(a_targets.size());
-    for (int c = 0; c < 3; ++c)
-      if (h.barycentric[c] != 0) a_rows.emplace_back(row, t[c], h.barycentric[c]);
-    a_targets.push_back(moved.row(k));
-  }
-  r.matched_fraction = static_cast<double>(a_targets.size()) / static_cast<double>(moved.rows());
-  if (a_targets.size() < 3) throw InputError(o.source, "nothing matched the original surface after alignment");
-
   Points x = ctx.control.points;
   double residual = 0;
+  std::vector<TriangleHit> hits(static_cast<size_t>(moved.rows()));
   for (int it = 0; it < std::max(1, o.fit_iterations); ++it) {
+    // Pairs against the current estimate: the mark moves the surface by a fair fraction of the
+    // refined edge length, tangentially too, so pairs with the original surface would be biased.
+    const Points R = it == 0 ? level.points : apply_subdivision(level.op, x);
+    const TriangleIndex current_tree(R, ctx.fit_tris);
+    const TriangleIndex& surface = it == 0 ? *ctx.fit_tree : current_tree;
+    std::vector<Trip> rows;
+    std::vector<Eigen::RowVector3d> targets;
+    int accepted = 0;
+    // Suspect samples -> current refined surface.
+    for (Eigen::Index k = 0; k < moved.rows(); ++k) {
+      const Eigen::Vector3d q = moved.row(k).transpose();
+      TriangleHit& h = hits[static_cast<size_t>(k)];
+      if (it == 0) {
+        h = surface.closest(q);
+      } else {
+        const auto& t = ctx.fit_tris[h.triangle];
+        const Eigen::Vector3d on = h.barycentric[0] * R.row(t[0]).transpose() + h.barycentric[1] * R.row(t[1]).transpose() +
+                                   h.barycentric[2] * R.row(t[2]).transpose();
+        h = surface.closest(q, TriangleHint{h.triangle, on});
+      }
+      if (!(h.distance <= max_d)) continue;
+      const auto& t = ctx.fit_tris[h.triangle];
+      const int row = static_cast<int>(targets.size());
+      for (int c = 0; c < 3; ++c)
+        if (h.barycentric[c] != 0) rows.emplace_back(row, t[c], h.barycentric[c]);
+      targets.push_back(moved.row(k));
+      ++accepted;
+    }
+    r.matched_fraction = static_cast<double>(accepted) / static_cast<double>(moved.rows());
+    if (accepted < 3) throw InputError(o.source, "nothing matched the original surface after alignment");
     // Refined vertices of the current estimate -> suspect surface.
-    const Points R = apply_subdivision(level.op, x);
-    std::vector<Trip> rows = a_rows;
-    std::vector<Eigen::RowVector3d> targets = a_targets;
     for (int v = 0; v < nr; ++v) {
       const Eigen::RowVector3d pv = R.row(v);
       const TriangleHit h = suspect_tree.closest(Tinv.apply(pv).transpose());
@@ -332,7 +343,8 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
     Eigen::MatrixXd P(m, 3);
     for (int k = 0; k < m; ++k) P.row(k) = targets[k];
     SpMat M = SpMat(A.transpose()) * A;
-    const double lambda = o.regularization * static_cast<double>(m) / n;
+    // Relative to the data's own weight per control point, so the pull is a fixed fraction.
+    const double lambda = o.regularization * M.diagonal().mean();
     SpMat I(n, n);
     I.setIdentity();
     M += lambda * I;
@@ -345,6 +357,16 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
   r.points = x;
   r.residual_rms = residual / ctx.diagonal;
   return r;
+}
+
+// The coarse alignment (least squares on positions) absorbs part of the mark's lowest
+// frequencies; re-estimate the similarity on the recovered control points so it does not.
+void refine_alignment(const ResyncContext::Impl& ctx, const ResyncOptions& o, Resynchronized* r) {
+  if (!o.align) return;
+  const Similarity c = fit_similarity_preserving_mark(ctx.control, r->points);
+  r->points = c.apply(r->points);
+  r->to_control_frame = c.after(r->to_control_frame);
+  r->residual_rms *= c.scale;
 }
 
 void check_suspect(const Mesh& suspect, const std::string& source) {
@@ -367,7 +389,7 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
   const int ns = suspect.num_vertices();
 
   // Same numbering: vertices correspond by index.
-  for (int l = 0; l <= top; ++l) {
+  for (int l = 0; l <= top && !o.force_surface_fit; ++l) {
     const LevelData& level = *ctx.levels[l];
     if (level.points.rows() != ns || !faces_consistent(level, suspect)) continue;
     Resynchronized r;
@@ -379,18 +401,25 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
     // Level 0: what separates the suspect from the original (mark, quantisation, noise).
     const Points refined = l == 0 ? level.points : apply_subdivision(level.op, r.points);
     r.residual_rms = rms_rows(refined, p) / ctx.diagonal;
+    refine_alignment(ctx, o, &r);
+    if (l == 0) r.residual_rms = rms_rows(r.points, ctx.control.points) / ctx.diagonal;
     return r;
   }
   // Same vertices, numbering lost (STL welding, re-export): mutual nearest neighbours.
-  for (int l = 0; l <= top; ++l) {
+  for (int l = 0; l <= top && !o.force_surface_fit; ++l) {
     const LevelData& level = *ctx.levels[l];
     const double nr = static_cast<double>(level.points.rows());
     if (std::abs(ns - nr) > o.count_tolerance * nr) continue;
     const Matching m = match_vertices(level, suspect.points, o);
     if (m.matched < o.min_matched_fraction * nr) continue;
-    return from_matching(ctx, level, l, suspect.points, m);
+    Resynchronized r = from_matching(ctx, level, l, suspect.points, m);
+    refine_alignment(ctx, o, &r);
+    if (l == 0) r.residual_rms = rms_rows(r.points, ctx.control.points) / ctx.diagonal;
+    return r;
   }
-  return surface_fit(ctx, suspect, o);
+  Resynchronized r = surface_fit(ctx, suspect, o);
+  refine_alignment(ctx, o, &r);
+  return r;
 }
 
 }  // namespace mm

@@ -44,9 +44,10 @@ struct ResyncOptions {
   // Surface fit.
   int suspect_samples = 20000;   // area-weighted samples of the suspect surface (plus its vertices)
   int alignment_samples = 4000;  // samples of each surface used by the similarity ICP
-  double regularization = 0.05;  // pull towards the original control points, per data weight
+  double regularization = 0.01;  // pull towards the original control points / mean data weight
   double max_distance = 0.02;    // correspondences farther than this x diagonal are ignored
-  int fit_iterations = 2;        // re-pairing rounds of the refined vertices with the suspect
+  bool force_surface_fit = false;  // skip recognition (experiments, suspects known to be remeshed)
+  int fit_iterations = 4;        // pairing / solve rounds against the current estimate
   std::uint64_t seed = 1;        // sampling is deterministic for a given seed
 };
 

@@ -1,0 +1,194 @@
+// The watermark through resynchronisation, end to end on fandisk_quads.off (766-vertex control
+// polyhedron): embed (Method 1, a = 0.01), turn the copy into what a leak would look like
+// (subdivided and noisy, an STL file, the codec's polyhedron, a decimated surface), resynchronise
+// against the original and extract. Marked copies must be detected with tiny p-values, unmarked
+// ones must not be.
+#include <gtest/gtest.h>
+#include <sodium.h>
+#include <unistd.h>
+
+#include <Eigen/Geometry>
+#include <chrono>
+#include <filesystem>
+#include <random>
+
+#include "codec/stream.h"
+#include "common/shared_meshes.h"
+#include "meshio/normalize.h"
+#include "meshio/read_mesh.h"
+#include "registration/resynchronize.h"
+#include "subdivision/decompress.h"
+#include "subdivision/subdivide.h"
+#include "watermark/watermark.h"
+
+namespace {
+
+using namespace mm;
+
+constexpr int kBits = 64;
+
+struct Fixture {
+  Mesh control;
+  SpectralBasis basis;
+  Key key;
+  Nonce nonce;
+  std::vector<bool> message;
+  EmbedParams params{Method::Multiplicative, 0.01, 0.05};
+  Mesh marked;  // the watermarked control polyhedron
+  std::unique_ptr<ResyncContext> context;
+};
+
+const Fixture& fixture() {
+  static const Fixture f = [] {
+    Fixture x;
+    x.control = read_mesh(test::shared_mesh("fandisk_quads.off"));
+    apply(unit_box_normalization(x.control.points), x.control.points);
+    x.basis = compute_basis(x.control);
+    std::mt19937_64 rng(2026);
+    for (auto& b : x.key) b = static_cast<std::uint8_t>(rng() >> 56);
+    for (auto& b : x.nonce) b = static_cast<std::uint8_t>(rng() >> 56);
+    x.message.resize(kBits);
+    for (int i = 0; i < kBits; ++i) x.message[i] = (rng() >> 63) != 0;
+    x.marked = x.control;
+    x.marked.points = embed(x.basis, x.control.points, x.message, x.key, x.nonce, x.params);
+    x.context = std::make_unique<ResyncContext>(x.control, 3);
+    return x;
+  }();
+  return f;
+}
+
+Extraction detect(const Mesh& suspect, Resynchronized* out = nullptr, const ResyncOptions& o = {}) {
+  const Fixture& f = fixture();
+  const Resynchronized r = resynchronize(*f.context, suspect, o);
+  if (out) *out = r;
+  return extract(f.basis, f.control.points, r.points, kBits, f.key, f.nonce, f.params, &f.message);
+}
+
+// Uniform noise in [-amplitude, amplitude] per coordinate, seeded.
+void add_noise(Mesh& m, double amplitude, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  for (Eigen::Index i = 0; i < m.points.size(); ++i)
+    m.points.data()[i] += amplitude * (static_cast<double>(rng() >> 11) * 0x1.0p-52 - 1.0);
+}
+
+std::filesystem::path temp_dir() {
+  static const struct Dir {
+    std::filesystem::path path;
+    Dir() : path(std::filesystem::temp_directory_path() / ("mm_registration_test_" + std::to_string(::getpid()))) {
+      std::filesystem::create_directories(path);
+    }
+    ~Dir() {
+      std::error_code ec;
+      std::filesystem::remove_all(path, ec);
+    }
+  } dir;
+  return dir.path;
+}
+
+void report(const char* what, const Resynchronized& r, const Extraction& x) {
+  std::printf("  %-34s %-11s L%d matched %.3f residual %.2e corr %.3f -log10 p %.1f bits %s\n", what,
+              r.method.c_str(), r.level, r.matched_fraction, r.residual_rms, x.correlation,
+              x.neg_log10_p, x.bit_error_rate == 0 ? "exact" : "errors");
+}
+
+}  // namespace
+
+TEST(ResyncWatermark, SubdividedNoisyCopyIsDetected) {
+  MM_REQUIRE_SHARED_MESHES();
+  ASSERT_GE(sodium_init(), 0);
+  const Fixture& f = fixture();
+  // Uniform noise of 0.05 % of the part's size on every refined coordinate. Method 1 with a = 0.01
+  // on 766 control vertices is fragile: most coefficients are small, so are their marks (the
+  // same noise put on the control points directly leaves a correlation of about 0.2).
+  Mesh suspect = subdivide(f.marked, 3);
+  add_noise(suspect, 0.0005, 1);
+  Resynchronized r;
+  const Extraction x = detect(suspect, &r);
+  report("subdivided 3, noise 0.0005", r, x);
+  EXPECT_EQ(r.method, "subdivided");
+  EXPECT_EQ(r.level, 3);
+  EXPECT_GT(x.correlation, 0.25);
+  EXPECT_LT(x.p_value, 1e-30);
+
+  Mesh clean = subdivide(f.control, 3);
+  add_noise(clean, 0.0005, 1);
+  const Extraction y = detect(clean, &r);
+  report("unmarked, subdivided 3, noise", r, y);
+  EXPECT_GT(y.p_value, 0.01);
+  EXPECT_LT(std::abs(y.correlation), 0.1);
+}
+
+TEST(ResyncWatermark, StlRoundTripLosesOrderNotTheMark) {
+  MM_REQUIRE_SHARED_MESHES();
+  const Fixture& f = fixture();
+  // STL: float32 coordinates, triangles only, vertices welded and renumbered by first appearance.
+  const auto path = (temp_dir() / "leak.stl").string();
+  Mesh decoded = subdivide(f.marked, 2);
+  Similarity part_units;
+  part_units.scale = 120;
+  part_units.rotation = Eigen::AngleAxisd(2.0, Eigen::Vector3d(0, 0, 1)).toRotationMatrix();
+  part_units.translation << 10, 20, 30;
+  decoded.points = part_units.apply(decoded.points);
+  write_mesh(decoded, path);
+  const Mesh suspect = read_mesh(path);
+  ASSERT_EQ(suspect.num_vertices(), decoded.num_vertices());
+  ASSERT_NE(suspect.points.row(1), Eigen::RowVector3d(decoded.points.row(1).cast<float>().cast<double>()));
+  Resynchronized r;
+  const Extraction x = detect(suspect, &r);
+  report("STL of subdivided 2, part units", r, x);
+  EXPECT_EQ(r.method, "subdivided");
+  EXPECT_EQ(r.level, 2);
+  EXPECT_TRUE(r.order_recovered);
+  EXPECT_EQ(r.matched_fraction, 1.0);
+  // The scale is known to 0.1 %: the mark itself (Method 1 rescales each coefficient by 1 +- a)
+  // is what limits it (align_similarity.h).
+  EXPECT_NEAR(r.to_control_frame.scale * 120, 1.0, 2e-3);
+  EXPECT_GT(x.correlation, 0.9);
+  EXPECT_EQ(x.message, f.message);
+}
+
+TEST(ResyncWatermark, CodecPolyhedronIsDetected) {
+  MM_REQUIRE_SHARED_MESHES();
+  const Fixture& f = fixture();
+  Mesh in_part_units = f.marked;
+  in_part_units.points = 80.0 * in_part_units.points;
+  in_part_units.points.rowwise() += Eigen::RowVector3d(5, -3, 2);
+  const DecodedStream d = decode(encode(in_part_units), "stream");
+  Resynchronized r;
+  const Extraction x = detect(d.mesh, &r);
+  report("codec polyhedron (12 bits), part units", r, x);
+  EXPECT_EQ(r.method, "polyhedron");
+  EXPECT_FALSE(r.order_recovered);
+  // 12-bit quantisation (steps of 1/4096 of the box) is below most small coefficients' marks.
+  EXPECT_GT(x.correlation, 0.35);
+  EXPECT_LT(x.p_value, 1e-50);
+  EXPECT_EQ(x.message, f.message);
+}
+
+TEST(ResyncWatermark, AlignmentDoesNotAbsorbTheMark) {
+  MM_REQUIRE_SHARED_MESHES();
+  const Fixture& f = fixture();
+  Similarity part_units;
+  part_units.scale = 40;
+  part_units.rotation = Eigen::AngleAxisd(-0.4, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix();
+  part_units.translation << -7, 3, 11;
+  Mesh suspect = subdivide(f.marked, 1);
+  add_noise(suspect, 0.0002, 2);
+  Mesh known = suspect;  // the frame is known exactly: the best alignment can do
+  suspect.points = part_units.apply(suspect.points);
+  ResyncOptions fixed;
+  fixed.align = false;
+  Resynchronized r;
+  const Extraction best = detect(known, &r, fixed);
+  report("subdivided 1, noise, known frame", r, best);
+  const Extraction aligned = detect(suspect, &r);
+  report("same in part units, aligned", r, aligned);
+  EXPECT_NEAR(r.to_control_frame.scale * part_units.scale, 1.0, 2e-3);
+  // A plain least-squares similarity on the positions takes a share of the mark with it.
+  Mesh plain = known;
+  plain.points = fit_similarity(suspect.points, subdivide(f.control, 1).points).apply(suspect.points);
+  const Extraction absorbed = detect(plain, &r, fixed);
+  report("plain least-squares alignment", r, absorbed);
+  EXPECT_GT(aligned.correlation, best.correlation - 0.05);
+  EXPECT_LT(absorbed.correlation, aligned.correlation - 0.1);
+}
