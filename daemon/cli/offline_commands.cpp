@@ -156,6 +156,7 @@ void add_offline_commands(CLI::App& app) {
   add_sample_command(app);
   add_keygen_command(app);
   add_attack_commands(app);
+  add_mark_commands(app);
 }
 
 }  // namespace mm::cli
