@@ -1,0 +1,323 @@
+// The offline commands end to end, through the built binary: exit codes, messages, files.
+// Keys are fixed (test::write_key), so every number asserted here is reproducible.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+
+#include <nlohmann/json.hpp>
+
+#include "cli_test_util.h"
+#include "codec/stream.h"
+#include "common/shared_meshes.h"
+#include "meshio/read_mesh.h"
+
+using namespace mm;
+using namespace mm::test;
+using nlohmann::json;
+
+namespace {
+
+#define EXPECT_RUN_OK(r) EXPECT_EQ((r).code, 0) << (r).out << (r).err
+
+json extract_json(const Scratch& s, const std::string& original, const std::string& suspect, const std::string& key,
+                  const std::string& record) {
+  const CliRun r = meshmark(s, {"extract", original, suspect, key, "--record", record, "--json"});
+  EXPECT_EQ(r.code, 0) << r.err;
+  try {
+    return json::parse(r.out);
+  } catch (const std::exception&) {
+    ADD_FAILURE() << "not JSON: " << r.out << r.err;
+    return json::object();
+  }
+}
+
+// The chamfered block sample part compressed to a 66-vertex control polyhedron stream: a real
+// .mmc original that keeps every command fast.
+struct StreamOriginal {
+  Scratch s;
+  std::string part = s / "block.off", original = s / "block.mmc";
+  std::string alice = write_key(s, "alice.key", 'a'), bob = write_key(s, "bob.key", 'b');
+  StreamOriginal() {
+    EXPECT_RUN_OK(meshmark(s, {"sample", "chamfered-block", part}));
+    EXPECT_RUN_OK(meshmark(s, {"compress", part, original}));
+  }
+};
+
+}  // namespace
+
+TEST(CliSample, ListsAndWritesPartsAcceptingDashOrUnderscore) {
+  Scratch s;
+  const CliRun list = meshmark(s, {"sample", "--list"});
+  EXPECT_RUN_OK(list);
+  for (const char* name : {"chamfered_block", "plate_with_holes", "flanged_cylinder"})
+    EXPECT_NE(list.out.find(name), std::string::npos) << list.out;
+  EXPECT_RUN_OK(meshmark(s, {"sample", "plate-with-holes", s / "a.off"}));
+  EXPECT_RUN_OK(meshmark(s, {"sample", "plate_with_holes", s / "b.off"}));
+  EXPECT_EQ(slurp(s / "a.off"), slurp(s / "b.off"));
+  EXPECT_EQ(read_mesh(s / "a.off").num_vertices(), 1434);
+  const CliRun bad = meshmark(s, {"sample", "teapot", s / "c.off"});
+  EXPECT_EQ(bad.code, 64);
+  EXPECT_NE(bad.err.find("teapot"), std::string::npos) << bad.err;
+  EXPECT_FALSE(exists(s / "c.off"));
+}
+
+TEST(CliKeygen, OwnerOnlyHexKeyNeverPrintedNeverOverwritten) {
+  Scratch s;
+  const std::string key = s / "k.key";
+  const CliRun r = meshmark(s, {"keygen", key});
+  EXPECT_RUN_OK(r);
+  struct stat st {};
+  ASSERT_EQ(::stat(key.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  const std::string text = slurp(key);
+  ASSERT_EQ(text.size(), 65u);
+  EXPECT_EQ(text.find_first_not_of("0123456789abcdef"), 64u);
+  EXPECT_EQ(r.out.find(text.substr(0, 64)), std::string::npos) << "key printed";
+  EXPECT_EQ(r.err.find(text.substr(0, 64)), std::string::npos) << "key printed";
+  const CliRun again = meshmark(s, {"keygen", key});
+  EXPECT_EQ(again.code, 1);
+  EXPECT_NE(again.err.find("never overwrites"), std::string::npos) << again.err;
+  EXPECT_EQ(slurp(key), text);
+  EXPECT_RUN_OK(meshmark(s, {"keygen", s / "k2.key"}));
+  EXPECT_NE(slurp(s / "k2.key"), text);
+  const CliRun nodir = meshmark(s, {"keygen", s / "missing/k.key"});
+  EXPECT_EQ(nodir.code, 2);
+  EXPECT_NE(nodir.err.find("missing/k.key"), std::string::npos) << nodir.err;
+}
+
+TEST(CliAttack, NoiseIsSeededAndBoundedSimilarityAndSubdivideDoWhatTheySay) {
+  Scratch s;
+  const std::string part = s / "part.off";
+  ASSERT_EQ(meshmark(s, {"sample", "chamfered_block", part}).code, 0);
+  EXPECT_RUN_OK(meshmark(s, {"attack", "noise", part, s / "n1.off", "--amplitude", "0.001", "--seed", "5"}));
+  EXPECT_RUN_OK(meshmark(s, {"attack", "noise", part, s / "n2.off", "--amplitude", "0.001", "--seed", "5"}));
+  EXPECT_RUN_OK(meshmark(s, {"attack", "noise", part, s / "n3.off", "--amplitude", "0.001", "--seed", "6"}));
+  EXPECT_EQ(slurp(s / "n1.off"), slurp(s / "n2.off"));
+  EXPECT_NE(slurp(s / "n1.off"), slurp(s / "n3.off"));
+  const Mesh m = read_mesh(part), n = read_mesh(s / "n1.off");
+  const double side = (m.points.colwise().maxCoeff() - m.points.colwise().minCoeff()).maxCoeff();
+  const double max_move = (n.points - m.points).cwiseAbs().maxCoeff();
+  EXPECT_LE(max_move, 0.001 * side * (1 + 1e-12));
+  EXPECT_GT(max_move, 0.0009 * side);  // uniform in [-A, A]: some coordinate gets near A
+  EXPECT_EQ(n.faces, m.faces);
+
+  EXPECT_RUN_OK(meshmark(s, {"attack", "similarity", part, s / "sim.off", "--scale", "2", "--shift", "1", "0", "0"}));
+  const Mesh sim = read_mesh(s / "sim.off");
+  EXPECT_NEAR((sim.points.row(3) - sim.points.row(0)).norm(), 2 * (m.points.row(3) - m.points.row(0)).norm(), 1e-9);
+  EXPECT_NEAR(sim.points(0, 0), 2 * m.points(0, 0) + side, 1e-9);
+
+  EXPECT_RUN_OK(meshmark(s, {"attack", "subdivide", part, s / "sub.off", "--levels", "1"}));
+  EXPECT_GT(read_mesh(s / "sub.off").num_vertices(), 3 * m.num_vertices());
+
+  const CliRun missing = meshmark(s, {"attack", "noise", s / "nope.off", s / "x.off"});
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_NE(missing.err.find("nope.off"), std::string::npos);
+  EXPECT_FALSE(exists(s / "x.off"));
+}
+
+// Fandisk as the control polyhedron itself (the paper's fandisk_quads experiment).
+TEST(CliMark, FandiskUnattackedExactWrongKeyNullDeterministic) {
+  MM_REQUIRE_SHARED_MESHES();
+  Scratch s;
+  const std::string original = shared_mesh("fandisk_quads.off");
+  const std::string alice = write_key(s, "alice.key", 'a'), bob = write_key(s, "bob.key", 'b');
+  const std::string a = s / "alice.off", b = s / "bob.off";
+  EXPECT_RUN_OK(meshmark(s, {"embed", original, alice, a, "--message", "copy:alice"}));
+  EXPECT_RUN_OK(meshmark(s, {"embed", original, bob, b, "--message", "copy:bob"}));
+
+  // The watermarked polyhedron keeps connectivity and vertex order and moves every vertex little.
+  const Mesh orig = read_mesh(original), marked = read_mesh(a);
+  ASSERT_EQ(marked.num_vertices(), orig.num_vertices());
+  EXPECT_EQ(marked.faces, orig.faces);
+  EXPECT_GT((marked.points - orig.points).cwiseAbs().maxCoeff(), 0);
+
+  const json right = extract_json(s, original, a, alice, a + ".mmrec.json");
+  EXPECT_EQ(right["correlation"].get<double>(), 1.0);
+  EXPECT_EQ(right["message"]["text"], "copy:alice");
+  EXPECT_TRUE(right["message"]["matches_record"].get<bool>());
+  EXPECT_EQ(right["bit_error_rate"].get<double>(), 0.0);
+  EXPECT_GT(right["neg_log10_p"].get<double>(), 300);
+  EXPECT_EQ(right["verdict"], "watermark present");
+  EXPECT_EQ(right["resync"]["method"], "polyhedron");
+  EXPECT_TRUE(right["suspect_is_issued_file"].get<bool>());
+
+  // Bob's copy examined with Alice's key and record: nothing of Alice's mark in it.
+  const json wrong = extract_json(s, original, b, alice, a + ".mmrec.json");
+  EXPECT_LT(std::abs(wrong["correlation"].get<double>()), 0.1) << wrong.dump();
+  EXPECT_GT(wrong["p_value"].get<double>(), 0.01);
+  EXPECT_FALSE(wrong["message"]["matches_record"].get<bool>());
+  EXPECT_EQ(wrong["verdict"], "no watermark found");
+
+  // The original itself carries no mark.
+  const json clean = extract_json(s, original, original, alice, a + ".mmrec.json");
+  EXPECT_GT(clean["p_value"].get<double>(), 0.01);
+  EXPECT_NE(clean["verdict"], "watermark present");
+
+  // Same command, same bytes: mesh and record (the nonce is derived, not drawn).
+  const std::string a2 = s / "again.off";
+  EXPECT_RUN_OK(meshmark(s, {"embed", original, alice, a2, "--message", "copy:alice"}));
+  EXPECT_EQ(slurp(a2), slurp(a));
+  json r1 = json::parse(slurp(a + ".mmrec.json")), r2 = json::parse(slurp(a2 + ".mmrec.json"));
+  EXPECT_EQ(r1["output"]["sha256"], r2["output"]["sha256"]);
+  r2["output"]["file"] = r1["output"]["file"];
+  EXPECT_EQ(r1, r2);
+  EXPECT_EQ(slurp(a + ".mmrec.json").find(std::string(64, 'a')), std::string::npos) << "key in record";
+  EXPECT_EQ(r1["watermark"]["message_bits"], 80);
+  EXPECT_EQ(r1["control"]["vertices"], 766);
+}
+
+TEST(CliMark, FandiskDecodedLevel3AndNoisyLevel3AreDetected) {
+  MM_REQUIRE_SHARED_MESHES();
+  Scratch s;
+  const std::string original = shared_mesh("fandisk_quads.off");
+  const std::string alice = write_key(s, "alice.key", 'a');
+  const std::string surf = s / "alice3.off";
+  EXPECT_RUN_OK(meshmark(s, {"embed", original, alice, surf, "--message", "alice", "--level", "3"}));
+  const json j = extract_json(s, original, surf, alice, surf + ".mmrec.json");
+  EXPECT_EQ(j["resync"]["method"], "subdivided");
+  EXPECT_EQ(j["resync"]["level"], 3);
+  EXPECT_LT(j["p_value"].get<double>(), 1e-9);
+  EXPECT_EQ(j["message"]["text"], "alice");
+  EXPECT_EQ(j["verdict"], "watermark present");
+
+  ASSERT_EQ(meshmark(s, {"attack", "noise", surf, s / "noisy.off", "-A", "0.001", "--seed", "3"}).code, 0);
+  const json n = extract_json(s, original, s / "noisy.off", alice, surf + ".mmrec.json");
+  EXPECT_EQ(n["resync"]["method"], "subdivided");
+  EXPECT_LT(n["p_value"].get<double>(), 1e-9) << n.dump();
+  EXPECT_EQ(n["message"]["text"], "alice");
+}
+
+TEST(CliMark, StreamOriginalStreamCopyDecodedAndNoisySuspects) {
+  StreamOriginal o;
+  Scratch& s = o.s;
+  const std::string a = s / "alice.mmc", b = s / "bob.mmc";
+  EXPECT_RUN_OK(meshmark(s, {"embed", o.original, o.alice, a, "--message", "alice"}));
+  EXPECT_RUN_OK(meshmark(s, {"embed", o.original, o.bob, b, "--message", "bob"}));
+  const json rec = json::parse(slurp(a + ".mmrec.json"));
+  EXPECT_EQ(rec["original"]["kind"], "stream");
+  EXPECT_EQ(rec["output"]["kind"], "stream");
+  EXPECT_GE(rec["output"]["check_correlation"].get<double>(), 0.95);
+
+  // The stream copy: same vertex order, nothing secret or customer-identifying in its metadata.
+  const DecodedStream orig = decode_file(o.original), copy = decode_file(a);
+  EXPECT_EQ(copy.mesh.num_vertices(), orig.mesh.num_vertices());
+  EXPECT_EQ(copy.mesh.creases, orig.mesh.creases);
+  EXPECT_EQ(copy.metadata, orig.metadata);  // the fitted level only
+  EXPECT_EQ(copy.quantization.bits, rec["output"]["quant_bits"].get<int>());
+
+  const json direct = extract_json(s, o.original, a, o.alice, a + ".mmrec.json");
+  EXPECT_LT(direct["p_value"].get<double>(), 1e-9);
+  EXPECT_EQ(direct["message"]["text"], "alice");
+  EXPECT_EQ(direct["verdict"], "watermark present");
+
+  // Bob's copy decoded at level 3 (what a viewer shows), then noise: named with Bob's record only.
+  ASSERT_EQ(meshmark(s, {"decompress", b, s / "bob3.off", "--level", "3"}).code, 0);
+  const json dec = extract_json(s, o.original, s / "bob3.off", o.bob, b + ".mmrec.json");
+  EXPECT_EQ(dec["resync"]["method"], "subdivided");
+  EXPECT_LT(dec["p_value"].get<double>(), 1e-9);
+  EXPECT_EQ(dec["message"]["text"], "bob");
+  ASSERT_EQ(meshmark(s, {"attack", "noise", s / "bob3.off", s / "leak.off", "-A", "0.0005", "--seed", "7"}).code, 0);
+  const json leak_bob = extract_json(s, o.original, s / "leak.off", o.bob, b + ".mmrec.json");
+  EXPECT_LT(leak_bob["p_value"].get<double>(), 1e-9) << leak_bob.dump();
+  EXPECT_EQ(leak_bob["verdict"], "watermark present");
+  const json leak_alice = extract_json(s, o.original, s / "leak.off", o.alice, a + ".mmrec.json");
+  EXPECT_GT(leak_alice["p_value"].get<double>(), 0.01) << leak_alice.dump();
+  EXPECT_EQ(leak_alice["verdict"], "no watermark found");
+
+  // Rescaled and rotated leak: the similarity is fitted.
+  ASSERT_EQ(meshmark(s, {"attack", "similarity", s / "leak.off", s / "moved.off", "--scale", "25.4", "--rotate",
+                         "30", "--shift", "1", "-2", "0.5"})
+                .code,
+            0);
+  const json moved = extract_json(s, o.original, s / "moved.off", o.bob, b + ".mmrec.json");
+  EXPECT_TRUE(moved["resync"]["aligned"].get<bool>());
+  EXPECT_LT(moved["p_value"].get<double>(), 1e-9) << moved.dump();
+  EXPECT_EQ(moved["message"]["text"], "bob");
+}
+
+TEST(CliMark, SameEmbedTwiceGivesIdenticalStreamAndRecord) {
+  StreamOriginal o;
+  Scratch& s = o.s;
+  EXPECT_RUN_OK(meshmark(s, {"embed", o.original, o.alice, s / "x.mmc", "-m", "alice", "--method", "1"}));
+  EXPECT_RUN_OK(meshmark(s, {"embed", o.original, o.alice, s / "x.mmc.again.mmc", "-m", "alice", "--method", "1"}));
+  const std::string first = slurp(s / "x.mmc");
+  ASSERT_FALSE(first.empty());
+  EXPECT_EQ(slurp(s / "x.mmc.again.mmc"), first);
+  const std::string rec = slurp(s / "x.mmc.mmrec.json");
+  EXPECT_RUN_OK(meshmark(s, {"embed", o.original, o.alice, s / "x.mmc", "-m", "alice", "--method", "1"}));
+  EXPECT_EQ(slurp(s / "x.mmc"), first);
+  EXPECT_EQ(slurp(s / "x.mmc.mmrec.json"), rec);
+  // Another message gives another copy.
+  EXPECT_RUN_OK(meshmark(s, {"embed", o.original, o.alice, s / "y.mmc", "-m", "alicf", "--method", "1"}));
+  EXPECT_NE(slurp(s / "y.mmc"), first);
+}
+
+TEST(CliMark, RecordMismatchesAreRefused) {
+  StreamOriginal o;
+  Scratch& s = o.s;
+  const std::string a = s / "alice.mmc";
+  ASSERT_EQ(meshmark(s, {"embed", o.original, o.alice, a, "-m", "alice"}).code, 0);
+  // Alice's record with Bob's key.
+  CliRun r = meshmark(s, {"extract", o.original, a, o.bob, "--record", a + ".mmrec.json"});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("bob.key"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("not the key"), std::string::npos) << r.err;
+  // The record against another original (the uncompressed part).
+  r = meshmark(s, {"extract", o.part, a, o.alice, "--record", a + ".mmrec.json"});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("another original"), std::string::npos) << r.err;
+}
+
+TEST(CliMark, BadInputsExit2NamingTheFileAndWriteNothing) {
+  StreamOriginal o;
+  Scratch& s = o.s;
+  const std::string a = s / "alice.mmc";
+  ASSERT_EQ(meshmark(s, {"embed", o.original, o.alice, a, "-m", "alice"}).code, 0);
+  const std::string rec = a + ".mmrec.json";
+
+  std::ofstream(s / "garbage.off") << "OFF\n3 1 0\n0 0 0\n1 0 0\n";  // truncated
+  const std::string stream = slurp(o.original);
+  std::ofstream(s / "truncated.mmc", std::ios::binary) << stream.substr(0, stream.size() / 2);
+  std::ofstream(s / "bad.key") << "not a key\n";
+  std::ofstream(s / "bad.json") << "{\"format\": \"meshmark-copy-record\"";
+  std::ofstream(s / "part.xyz") << "1 2 3\n";
+
+  struct Case {
+    std::vector<std::string> args;
+    std::string names;
+  };
+  const std::string out = s / "out.mmc";
+  const std::vector<Case> cases = {
+      {{"embed", s / "missing.off", o.alice, out, "-m", "x"}, "missing.off"},
+      {{"embed", s / "garbage.off", o.alice, out, "-m", "x"}, "garbage.off"},
+      {{"embed", s / "truncated.mmc", o.alice, out, "-m", "x"}, "truncated.mmc"},
+      {{"embed", s / "part.xyz", o.alice, out, "-m", "x"}, "part.xyz"},
+      {{"embed", o.original, s / "bad.key", out, "-m", "x"}, "bad.key"},
+      {{"embed", o.original, s / "missing.key", out, "-m", "x"}, "missing.key"},
+      {{"embed", o.original, o.alice, out, "-m", std::string(24, 'x')}, "block.mmc"},  // too long for 66 vertices
+      {{"embed", o.original, o.alice, s / "nodir/out.off", "-m", "x"}, "nodir/out.off"},
+      {{"extract", o.original, s / "truncated.mmc", o.alice, "-r", rec}, "truncated.mmc"},
+      {{"extract", o.original, s / "garbage.off", o.alice, "-r", rec}, "garbage.off"},
+      {{"extract", o.original, a, o.alice, "-r", s / "bad.json"}, "bad.json"},
+      {{"extract", o.original, a, o.alice, "-r", s / "missing.json"}, "missing.json"},
+      {{"extract", o.original, a, s / "bad.key", "-r", rec}, "bad.key"},
+      {{"extract", s / "truncated.mmc", a, o.alice, "-r", rec}, "truncated.mmc"},
+  };
+  for (const auto& c : cases) {
+    const CliRun r = meshmark(s, c.args);
+    EXPECT_EQ(r.code, 2) << c.args[0] << " " << c.names << ": " << r.err;
+    EXPECT_NE(r.err.find(c.names), std::string::npos) << r.err;
+    EXPECT_FALSE(exists(out)) << c.names;
+    EXPECT_FALSE(exists(out + ".mmrec.json")) << c.names;
+  }
+  EXPECT_FALSE(exists(s / "nodir"));
+  // No temporary files left behind either.
+  for (const auto& e : fs::directory_iterator(s.dir))
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+
+  // Usage errors: option combinations that make no sense.
+  EXPECT_EQ(meshmark(s, {"embed", o.original, o.alice, out, "-m", "x", "--level", "2"}).code, 64);
+  EXPECT_EQ(meshmark(s, {"embed", o.original, o.alice, s / "o.off", "-m", "x", "--bits", "14"}).code, 64);
+  EXPECT_EQ(meshmark(s, {"embed", o.original, o.alice, out, "-m", "x", "--method", "3"}).code, 64);
+  EXPECT_EQ(meshmark(s, {"embed", o.original, o.alice, out, "-m", "\xff"}).code, 64);
+  EXPECT_FALSE(exists(out));
+}
