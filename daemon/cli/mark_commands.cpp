@@ -245,15 +245,18 @@ double rms_displacement(const Similarity& t, const Points& points) {
   return std::sqrt((t.apply(points) - points).rowwise().squaredNorm().mean());
 }
 
-// Resynchronises with a fitted similarity, unless that similarity moves the original less than
-// twice the mark's own RMS displacement: then it cannot be told apart from the mark's projection
-// on scale, rotation and shift, and fitting it would only eat into the mark (an unattacked copy
-// would lose sign agreements). Such a suspect is taken as already in the original's frame.
+// Resynchronises with a fitted similarity. When vertices corresponded by index and that
+// similarity moves the original less than twice the mark's own RMS displacement, it cannot be
+// told apart from the mark's projection on scale, rotation and shift, and fitting it would only
+// eat into the mark (an unattacked copy would lose sign agreements): such a suspect is taken as
+// already in the original's frame. Nearest-neighbour matching and surface fitting keep their
+// alignment, which is part of how they pair points.
 Resynchronized resync(const ResyncContext& ctx, const Control& c, const Mesh& suspect, ResyncOptions opts,
                       double mark, bool& aligned) {
   opts.align = true;
   Resynchronized r = resynchronize(ctx, suspect, opts);
-  aligned = rms_displacement(r.to_control_frame, c.normalized.points) > 2 * mark;
+  aligned = r.order_recovered || r.method == "surface-fit" ||
+            rms_displacement(r.to_control_frame, c.normalized.points) > 2 * mark;
   if (aligned) return r;
   opts.align = false;
   return resynchronize(ctx, suspect, opts);
