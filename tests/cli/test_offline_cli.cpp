@@ -165,7 +165,7 @@ TEST(CliMark, FandiskUnattackedExactWrongKeyNullDeterministic) {
   EXPECT_EQ(r1["control"]["vertices"], 766);
 }
 
-TEST(CliMark, FandiskDecodedLevel3AndNoisyLevel3AreDetected) {
+TEST(CliMark, FandiskStreamDecodedLevel3AndNoisyLevel3AreDetected) {
   MM_REQUIRE_SHARED_MESHES();
   Scratch s;
   const std::string original = shared_mesh("fandisk_quads.off");
@@ -178,6 +178,18 @@ TEST(CliMark, FandiskDecodedLevel3AndNoisyLevel3AreDetected) {
   EXPECT_LT(j["p_value"].get<double>(), 1e-9);
   EXPECT_EQ(j["message"]["text"], "alice");
   EXPECT_EQ(j["verdict"], "watermark present");
+
+  // A mesh original written as a stream: the quantisation keeps the mark.
+  const std::string stream = s / "alice.mmc";
+  EXPECT_RUN_OK(meshmark(s, {"embed", original, alice, stream, "--message", "alice"}));
+  const json rec = json::parse(slurp(stream + ".mmrec.json"));
+  EXPECT_EQ(rec["original"]["kind"], "mesh");
+  EXPECT_GE(rec["output"]["quant_bits"].get<int>(), 12);
+  const json st = extract_json(s, original, stream, alice, stream + ".mmrec.json");
+  EXPECT_EQ(st["resync"]["method"], "polyhedron");
+  EXPECT_LT(st["p_value"].get<double>(), 1e-9);
+  EXPECT_GE(st["correlation"].get<double>(), 0.95);
+  EXPECT_EQ(st["message"]["text"], "alice");
 
   ASSERT_EQ(meshmark(s, {"attack", "noise", surf, s / "noisy.off", "-A", "0.001", "--seed", "3"}).code, 0);
   const json n = extract_json(s, original, s / "noisy.off", alice, surf + ".mmrec.json");
@@ -215,6 +227,12 @@ TEST(CliMark, StreamOriginalStreamCopyDecodedAndNoisySuspects) {
   EXPECT_EQ(dec["resync"]["method"], "subdivided");
   EXPECT_LT(dec["p_value"].get<double>(), 1e-9);
   EXPECT_EQ(dec["message"]["text"], "bob");
+  // The same surface as STL: triangulated, welded, vertex order lost.
+  ASSERT_EQ(meshmark(s, {"decompress", b, s / "bob3.stl", "--level", "3"}).code, 0);
+  const json stl = extract_json(s, o.original, s / "bob3.stl", o.bob, b + ".mmrec.json");
+  EXPECT_TRUE(stl["resync"]["order_recovered"].get<bool>());
+  EXPECT_LT(stl["p_value"].get<double>(), 1e-9) << stl.dump();
+  EXPECT_EQ(stl["message"]["text"], "bob");
   ASSERT_EQ(meshmark(s, {"attack", "noise", s / "bob3.off", s / "leak.off", "-A", "0.0005", "--seed", "7"}).code, 0);
   const json leak_bob = extract_json(s, o.original, s / "leak.off", o.bob, b + ".mmrec.json");
   EXPECT_LT(leak_bob["p_value"].get<double>(), 1e-9) << leak_bob.dump();
