@@ -42,12 +42,12 @@ struct ResyncOptions {
   double count_tolerance = 0.02;  // relative vertex-count difference still tried by matching
   IcpOptions icp;
   // Surface fit.
-  int suspect_samples = 20000;   // area-weighted samples of the suspect surface (plus its vertices)
+  int suspect_samples = 10000;   // per kind: suspect vertices, area samples, refined vertices paired
   int alignment_samples = 4000;  // samples of each surface used by the similarity ICP
-  double regularization = 0.01;  // pull towards the original control points / mean data weight
+  double regularization = 1e-3;  // pull towards the original control points / mean data weight
   double max_distance = 0.02;    // correspondences farther than this x diagonal are ignored
   bool force_surface_fit = false;  // skip recognition (experiments, suspects known to be remeshed)
-  int fit_iterations = 4;        // pairing / solve rounds against the current estimate
+  int fit_iterations = 3;        // pairing / solve rounds against the current estimate
   std::uint64_t seed = 1;        // sampling is deterministic for a given seed
 };
 
