@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# Reproduces the paper's Table I and Figure 8 on ../shared/data/meshes/fandisk_quads.off and runs
-# the spectral benchmark. Results go to $OUT (default build/paper-results): table1.csv,
-# figure8.csv, figure8.png, paper_experiments.txt and bench_spectral.txt.
+# Reproduces the paper's Table I and Figure 8 on ../shared/data/meshes/fandisk_quads.off and on
+# control polyhedra compress() makes from fandisk.off (Figure 8 also with the noise on the decoded,
+# subdivided model and detection through registration's resynchronize()), then runs the spectral
+# and registration benchmarks. Results go to $OUT (default build/paper-results): per control mesh
+# <name>_table1.csv, <name>_figure8.csv/.png, <name>_decoded_figure8.csv/.png, plus
+# paper_experiments.txt, bench_spectral.txt and bench_registration.txt.
 # Usage: scripts/bench-paper.sh [--no-bench]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -13,9 +16,10 @@ if [ ! -f "$MESH" ]; then
   exit 1
 fi
 cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build "$BUILD_DIR" -j "${JOBS:-2}" --target paper_experiments bench_spectral
+cmake --build "$BUILD_DIR" -j "${JOBS:-2}" --target paper_experiments bench_spectral bench_registration
 mkdir -p "$OUT"
 "$BUILD_DIR"/tests/watermark/paper_experiments "$OUT" "$MESH" | tee "$OUT/paper_experiments.txt"
 if [ "${1:-}" != "--no-bench" ]; then
   "$BUILD_DIR"/tests/spectral/bench_spectral | tee "$OUT/bench_spectral.txt"
+  "$BUILD_DIR"/tests/registration/bench_registration | tee "$OUT/bench_registration.txt"
 fi

@@ -1,0 +1,86 @@
+// Cost of resynchronisation on fandisk_quads.off (766-vertex control polyhedron, unit box):
+// building the per-asset context (levels 0..3) and resynchronising each kind of suspect. Run:
+// bench_registration [--benchmark_filter=...] (Release build, shared meshes beside the repo).
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <numeric>
+#include <random>
+
+#include "meshio/normalize.h"
+#include "meshio/read_mesh.h"
+#include "registration/remesh.h"
+#include "registration/resynchronize.h"
+#include "subdivision/subdivide.h"
+
+namespace {
+
+using namespace mm;
+
+const Mesh& control() {
+  static const Mesh m = [] {
+    Mesh c = read_mesh(std::string(MESHMARK_SHARED_MESHES) + "/fandisk_quads.off");
+    apply(unit_box_normalization(c.points), c.points);
+    return c;
+  }();
+  return m;
+}
+
+const ResyncContext& context() {
+  static const ResyncContext ctx(control(), 3);
+  return ctx;
+}
+
+Mesh shuffled(const Mesh& m, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<int> perm(m.num_vertices());
+  std::iota(perm.begin(), perm.end(), 0);
+  std::shuffle(perm.begin(), perm.end(), rng);
+  Mesh out;
+  out.points.resize(m.num_vertices(), 3);
+  for (int v = 0; v < m.num_vertices(); ++v) out.points.row(perm[v]) = m.points.row(v);
+  for (const auto& f : m.faces) {
+    std::vector<int> g;
+    for (int v : f) g.push_back(perm[v]);
+    out.faces.push_back(g);
+  }
+  return out;
+}
+
+void BM_Context(benchmark::State& state) {
+  for (auto _ : state) benchmark::DoNotOptimize(ResyncContext(control(), static_cast<int>(state.range(0))));
+  state.counters["control_vertices"] = control().num_vertices();
+}
+
+void run(benchmark::State& state, const Mesh& suspect) {
+  const auto& ctx = context();
+  std::string method;
+  for (auto _ : state) method = resynchronize(ctx, suspect).method;
+  state.SetLabel(method);
+  state.counters["suspect_vertices"] = suspect.num_vertices();
+}
+
+void BM_Polyhedron(benchmark::State& state) { run(state, control()); }
+
+void BM_SubdividedInOrder(benchmark::State& state) {
+  run(state, subdivide(control(), static_cast<int>(state.range(0))));
+}
+
+void BM_SubdividedShuffled(benchmark::State& state) {
+  Mesh s = shuffled(subdivide(control(), static_cast<int>(state.range(0))), 3);
+  s.points *= 25.4;  // part units
+  run(state, s);
+}
+
+void BM_SurfaceFitDecimated(benchmark::State& state) {
+  run(state, test::decimate(subdivide(control(), 3), static_cast<int>(state.range(0))));
+}
+
+}  // namespace
+
+BENCHMARK(BM_Context)->Arg(3)->Arg(4)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Polyhedron)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SubdividedInOrder)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SubdividedShuffled)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SurfaceFitDecimated)->Arg(15000)->Unit(benchmark::kMillisecond);
+BENCHMARK_MAIN();
