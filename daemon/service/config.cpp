@@ -113,7 +113,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
   cfg.source = source;
   c.known(j, "", {"home", "drop_dir", "output_dir", "master_key_file", "workers", "lease_seconds",
                   "heartbeat_seconds", "max_attempts", "shutdown_grace_seconds", "poll_interval_ms",
-                  "settle_ms", "use_inotify", "output_format", "watermark", "detect", "log_level",
+                  "settle_ms", "use_inotify", "output_format", "watermark", "compression", "detect", "log_level",
                   "log_file", "$comment"});
   c.path(j, "home", cfg.home, true);
   c.path(j, "drop_dir", cfg.drop_dir, true);
@@ -153,6 +153,22 @@ Config parse_config(const std::string& text, const std::string& source, const st
       c.integer(w, "watermark.", "max_vertices", cfg.max_vertices, 4, 20000);
     }
   }
+  if (j.contains("compression")) {
+    const json& w = j["compression"];
+    if (!w.is_object()) {
+      c.error("compression", "must be an object");
+    } else {
+      c.known(w, "compression.", {"tolerance", "max_vertices", "levels", "angle", "stream_bits"});
+      c.number(w, "compression.", "tolerance", cfg.compression.tolerance, 0, 0.5, true);
+      c.integer(w, "compression.", "max_vertices", cfg.compression.max_vertices, 8, 6000);
+      c.integer(w, "compression.", "levels", cfg.compression.levels, 1, 5);
+      c.number(w, "compression.", "angle", cfg.compression.angle_degrees, 0, 180, true);
+      c.integer(w, "compression.", "stream_bits", cfg.stream_bits, 12, 24);
+    }
+  }
+  if (cfg.compression.max_vertices > cfg.max_vertices)
+    c.error("compression.max_vertices", "must be at most watermark.max_vertices (" + std::to_string(cfg.max_vertices) +
+                                            "), the dense spectral basis limit");
   if (j.contains("detect")) {
     const json& d = j["detect"];
     if (!d.is_object()) {
@@ -218,6 +234,11 @@ std::map<std::string, std::string> flatten(const Config& c) {
           {"watermark.threshold", num(c.watermark.params.threshold)},
           {"watermark.message_bits", std::to_string(c.watermark.message_bits)},
           {"watermark.max_vertices", std::to_string(c.max_vertices)},
+          {"compression.tolerance", num(c.compression.tolerance)},
+          {"compression.max_vertices", std::to_string(c.compression.max_vertices)},
+          {"compression.levels", std::to_string(c.compression.levels)},
+          {"compression.angle", num(c.compression.angle_degrees)},
+          {"compression.stream_bits", std::to_string(c.stream_bits)},
           {"detect.p_threshold", num(c.p_threshold)},
           {"detect.max_candidates", std::to_string(c.max_candidates)},
           {"log_level", c.log_level},

@@ -34,7 +34,9 @@ struct Config {
   // Protect and detect.
   std::string output_format = "same";  // same | stl | obj | off | ply
   jobs::WatermarkSettings watermark;
-  int max_vertices = 4000;
+  int max_vertices = 4000;          // watermark.max_vertices: cap on the control polyhedron
+  CompressOptions compression;      // compression.{tolerance, max_vertices, levels, angle}
+  int stream_bits = 16;             // compression.stream_bits: quantisation of the .mmc copies
   double p_threshold = 1e-6;
   int max_candidates = 3;
   // Logging.

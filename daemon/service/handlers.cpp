@@ -9,12 +9,17 @@
 #include <nlohmann/json.hpp>
 #include <set>
 #include <spdlog/spdlog.h>
+#include <limits>
+#include <map>
+#include <optional>
 #include <string_view>
 
+#include "codec/stream.h"
 #include "jobs/detect.h"
 #include "jobs/payload.h"
 #include "jobs/prepared_asset.h"
 #include "jobs/protect.h"
+#include "jobs/registration.h"
 #include "meshio/read_mesh.h"
 
 namespace mm::service {
@@ -31,11 +36,14 @@ std::string lower(std::string s) {
   return s;
 }
 
-std::string format_of(const std::string& name) {
+// Mesh formats; detect also takes .mmc streams (a leaked compressed copy).
+std::string format_of(const std::string& name, bool allow_stream = false) {
   std::string ext = lower(fs::path(name).extension().string());
   if (!ext.empty()) ext.erase(0, 1);
+  if (allow_stream && ext == "mmc") return ext;
   if (ext != "stl" && ext != "obj" && ext != "off" && ext != "ply")
-    throw PermanentError(name + ": unsupported format \"" + ext + "\" (expected .stl, .obj, .off or .ply)");
+    throw PermanentError(name + ": unsupported format \"" + ext + "\" (expected .stl, .obj, .off or .ply" +
+                         (allow_stream ? std::string(" or a .mmc stream)") : std::string(")")));
   return ext;
 }
 
@@ -76,9 +84,15 @@ std::vector<std::uint8_t> input_bytes(store::Store& st, const json& p, const sto
   return st.blobs().get(h);
 }
 
-Mesh parse_input(const std::vector<std::uint8_t>& bytes, const std::string& name) {
-  std::string fmt = format_of(name);
+Mesh parse_input(const std::vector<std::uint8_t>& bytes, const std::string& name,
+                 std::map<std::string, std::string>* stream_metadata = nullptr) {
+  std::string fmt = format_of(name, stream_metadata != nullptr);
   try {
+    if (fmt == "mmc") {
+      DecodedStream d = decode(bytes, name);
+      *stream_metadata = d.metadata;
+      return d.mesh;
+    }
     return parse_mesh(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), fmt, name);
   } catch (const InputError& e) {
     throw PermanentError(e.what());
@@ -108,38 +122,54 @@ struct LoadedAsset {
   jobs::PreparedAsset prepared;
 };
 
-// The asset's prepared polyhedron and basis: from the cache, or computed once and stored
+jobs::PrepareParams prepare_params(const Config& cfg) {
+  jobs::PrepareParams pp;
+  pp.compression = cfg.compression;
+  pp.max_control_vertices = cfg.max_vertices;
+  return pp;
+}
+
+jobs::PreparedAsset decode_row(store::Store& st, const store::Polyhedron& row) {
+  return jobs::decode_prepared(st.blobs().get(row.polyhedron_blob), st.blobs().get(row.basis_blob),
+                               "asset " + std::to_string(row.asset_id) + " polyhedron " + std::to_string(row.id));
+}
+
+// The asset's prepared polyhedron and basis: from the cache, or compressed once and stored
 // (blobs first, then the row; a concurrent worker doing the same gets the same bytes and row).
 LoadedAsset get_or_prepare(store::Store& st, const store::Asset& asset, const Mesh& mesh, const Config& cfg) {
-  jobs::PrepareParams pp;
-  pp.max_vertices = cfg.max_vertices;
+  jobs::PrepareParams pp = prepare_params(cfg);
   const std::string key = pp.key();
-  if (auto row = st.find_polyhedron(asset.id, key)) {
-    return {*row, jobs::decode_prepared(st.blobs().get(row->polyhedron_blob), st.blobs().get(row->basis_blob),
-                                        "asset " + std::to_string(asset.id) + " polyhedron")};
-  }
+  if (auto row = st.find_polyhedron(asset.id, key)) return {*row, decode_row(st, *row)};
   jobs::PreparedAsset prepared;
   try {
     prepared = jobs::prepare_asset(mesh, pp, asset.name);
   } catch (const InputError& e) {
-    throw PermanentError(e.what());
+    throw PermanentError(std::string("compression failed: ") + e.what());
+  } catch (const std::invalid_argument& e) {
+    throw PermanentError(asset.name + ": compression failed: " + e.what());
   }
+  const CompressResult& cr = prepared.compression;
+  spdlog::info("compressed {}: {} -> {} control vertices, Hausdorff {:.3f} %, RMS {:.3f} % of the diagonal{}",
+               asset.name, mesh.num_vertices(), prepared.control.num_vertices(),
+               100 * cr.stats.hausdorff / cr.stats.diagonal, 100 * cr.stats.rms / cr.stats.diagonal,
+               cr.tolerance_met ? "" : " (tolerance not met within the vertex budget)");
   store::Polyhedron row;
   row.asset_id = asset.id;
   row.params_key = key;
   row.polyhedron_blob = st.blobs().put(jobs::encode_polyhedron(prepared));
   row.basis_blob = st.blobs().put(serialize_basis(prepared.basis));
   json meta = json::parse(prepared.signature.to_json());
-  row.meta_json = json{{"signature", meta}, {"control_vertices", prepared.control.num_vertices()}}.dump();
+  row.meta_json = json{{"signature", meta},
+                       {"control_vertices", prepared.control.num_vertices()},
+                       {"input_vertices", mesh.num_vertices()},
+                       {"levels", prepared.levels},
+                       {"hausdorff_relative", cr.stats.hausdorff / cr.stats.diagonal},
+                       {"rms_relative", cr.stats.rms / cr.stats.diagonal},
+                       {"tolerance_met", cr.tolerance_met},
+                       {"rounds", cr.rounds}}
+                      .dump();
   row = st.put_polyhedron(row);
   return {row, std::move(prepared)};
-}
-
-std::optional<LoadedAsset> load_prepared(store::Store& st, std::int64_t asset_id) {
-  auto row = st.find_polyhedron(asset_id, jobs::PrepareParams{}.key());
-  if (!row) return std::nullopt;
-  return LoadedAsset{*row, jobs::decode_prepared(st.blobs().get(row->polyhedron_blob), st.blobs().get(row->basis_blob),
-                                                 "asset " + std::to_string(asset_id) + " polyhedron")};
 }
 
 // Nonce and payload of a copy, derived from what identifies the copy, so a re-run after a crash
@@ -159,13 +189,24 @@ std::string copy_idempotency_key(const store::Job& job) {
   return job.idempotency_key.empty() ? "job:" + std::to_string(job.id) : job.idempotency_key;
 }
 
+std::string hex_of(const unsigned char* p, std::size_t n) {
+  static const char* digits = "0123456789abcdef";
+  std::string s;
+  for (std::size_t i = 0; i < n; ++i) s += digits[p[i] >> 4], s += digits[p[i] & 15];
+  return s;
+}
+
 }  // namespace
 
-std::string output_path_for(const Config& cfg, const std::string& customer, const std::string& name,
-                            const std::string& asset_sha256, const std::string& format) {
-  fs::path n(name);
-  std::string stem = n.stem().string();
-  return (fs::path(cfg.output_dir) / customer / (stem + "-" + asset_sha256.substr(0, 12) + "." + format)).string();
+std::string output_base_for(const Config& cfg, const std::string& customer, const std::string& name,
+                            const std::string& copy_key) {
+  // The tag names the copy (unique per idempotency key) without revealing its payload: two jobs
+  // for the same part and customer (another output format, another file name) never share files.
+  unsigned char h[6];
+  std::string msg = "meshmark-output-v1|" + copy_key;
+  crypto_generichash(h, sizeof h, reinterpret_cast<const unsigned char*>(msg.data()), msg.size(), nullptr, 0);
+  std::string stem = fs::path(name).stem().string();
+  return (fs::path(cfg.output_dir) / customer / (stem + "-" + hex_of(h, sizeof h))).string();
 }
 
 store::JobRecords run_protect(store::Store& st, const store::Job& job, const HandlerContext& ctx) {
@@ -207,16 +248,28 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
     if (!taken.count(phex)) break;
   }
 
-  Mesh copy;
+  const jobs::PreparedAsset& prep = la.prepared;
+  jobs::StreamSettings ss;
+  ss.quant_bits = cfg.stream_bits;
+  // Not secret and not identifying the copy: levels for decoders, the asset for detection.
+  ss.metadata = {{"levels", std::to_string(prep.levels)}, {"asset", asset.sha256}};
+  jobs::CopyFiles files;
   try {
-    copy = jobs::make_copy(la.prepared, ck.key.bytes(), nonce, payload, ws);
+    Mesh marked = jobs::make_copy(prep, ck.key.bytes(), nonce, payload, ws);
+    files = jobs::make_copy_files(prep, marked, ss, out_format == "stl");
   } catch (const std::invalid_argument& e) {
     throw PermanentError(name + ": cannot watermark: " + e.what());
+  } catch (const InputError& e) {
+    throw PermanentError(name + ": cannot encode the watermarked copy: " + e.what());
   }
-  std::string out = output_path_for(cfg, customer->name, name, asset.sha256, out_format);
-  fs::create_directories(fs::path(out).parent_path());
-  write_mesh(copy, out);  // temporary name, fsync, rename
-  std::string out_sha = store::sha256_file_hex(out);
+  // Each file: temporary name, fsync, rename. A crash between the two leaves complete files
+  // only; the re-run rewrites the same bytes (everything above is deterministic).
+  const std::string base = output_base_for(cfg, customer->name, name, idem);
+  const std::string stream_path = base + ".mmc", out = base + "." + out_format;
+  fs::create_directories(fs::path(base).parent_path());
+  write_stream_file(stream_path, files.stream);
+  write_mesh(files.decoded, out);
+  const std::string stream_sha = store::sha256_file_hex(stream_path), out_sha = store::sha256_file_hex(out);
 
   store::NewCopy nc;
   nc.asset_id = asset.id;
@@ -229,24 +282,83 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   params["prepare"] = la.row.params_key;
   params["basis_sha256"] = la.row.basis_blob;
   nc.params_json = params.dump();
-  nc.outputs_json = json{{"files", json::array({json{{"path", out}, {"sha256", out_sha}, {"format", out_format}}})}}.dump();
+  nc.outputs_json =
+      json{{"files", json::array({json{{"role", "decoded"}, {"path", out}, {"sha256", out_sha}, {"format", out_format},
+                                       {"levels", prep.levels}, {"vertices", files.decoded.num_vertices()}},
+                                  json{{"role", "stream"}, {"path", stream_path}, {"sha256", stream_sha}, {"format", "mmc"},
+                                       {"quant_bits", ss.quant_bits}, {"bytes", files.stream.size()}}})}}
+          .dump();
   nc.polyhedron_id = la.row.id;
 
   store::JobRecords rec;
   rec.copies.push_back(nc);
   rec.audit.push_back({ctx.worker_id, "copy.issue", "asset:" + std::to_string(asset.id),
-                       json{{"customer", customer->name}, {"key_version", ck.version}, {"output", out}}.dump()});
+                       json{{"customer", customer->name}, {"key_version", ck.version}, {"output", out},
+                            {"stream", stream_path}}.dump()});
   rec.result_json = json{{"asset_id", asset.id},
                          {"asset_sha256", asset.sha256},
                          {"customer", customer->name},
                          {"key_version", ck.version},
                          {"output", out},
                          {"output_sha256", out_sha},
+                         {"stream", stream_path},
+                         {"stream_sha256", stream_sha},
+                         {"stream_bytes", files.stream.size()},
                          {"payload", phex},
-                         {"vertices", mesh.num_vertices()}}
+                         {"vertices", mesh.num_vertices()},
+                         {"control_vertices", prep.control.num_vertices()},
+                         {"decoded_vertices", files.decoded.num_vertices()}}
                         .dump();
   return rec;
 }
+
+namespace {
+
+// A suspect in a polyhedron's vertex order and normalised frame.
+struct Aligned {
+  Points points;
+  std::string method;
+  int level = 0;
+  double residual = std::numeric_limits<double>::infinity();  // RMS, unit-box units
+  double matched_fraction = 0;
+};
+
+Aligned align_to(const jobs::PreparedAsset& asset, const Mesh& suspect) {
+  jobs::Registration r = jobs::register_suspect(asset, suspect);
+  return {r.points, r.method, 0, r.rms, r.matched_fraction};
+}
+
+std::string prepare_key_of(const store::IssuedCopy& c) {
+  try {
+    return json::parse(c.params_json).value("prepare", "");
+  } catch (const json::exception&) {
+    return "";
+  }
+}
+
+// The asset's shape signature from one of its polyhedra; rows of the vertex-based era are
+// recomputed from the original (its blob), so every asset compares with the same signature.
+std::optional<jobs::ShapeSignature> asset_signature(store::Store& st, std::int64_t asset_id,
+                                                    const std::vector<store::IssuedCopy>& copies) {
+  for (const auto& c : copies) {
+    auto row = st.find_polyhedron(asset_id, prepare_key_of(c));
+    if (!row) continue;
+    try {
+      auto sig = jobs::ShapeSignature::from_json(json::parse(row->meta_json).at("signature").dump());
+      if (sig.version == jobs::ShapeSignature{}.version) return sig;
+      auto a = st.get_asset(asset_id);
+      if (!a) return std::nullopt;
+      auto bytes = st.blobs().get(a->sha256);
+      return jobs::shape_signature(parse_input(bytes, a->name));
+    } catch (const std::exception& e) {
+      spdlog::warn("asset {}: no usable shape signature: {}", asset_id, e.what());
+      return std::nullopt;
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace
 
 store::JobRecords run_detect(store::Store& st, const store::Job& job, const HandlerContext& ctx) {
   const Config& cfg = ctx.config;
@@ -254,38 +366,45 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
   std::string name = fs::path(str_field(p, "name", job)).filename().string();
   std::string sha;
   auto bytes = input_bytes(st, p, job, &sha);
-  Mesh suspect = parse_input(bytes, name);
+  std::map<std::string, std::string> stream_meta;
+  Mesh suspect = parse_input(bytes, name, &stream_meta);
 
-  // Candidate assets: exact hash of an issued copy or of an original first, then by signature.
+  std::map<std::int64_t, std::vector<store::IssuedCopy>> copies_of;
+  for (auto& c : st.list_copies(std::nullopt, kAllCopies)) copies_of[c.asset_id].push_back(std::move(c));
+
+  // Candidate assets: exact hash of any issued file (stream or decoded mesh) or of an original,
+  // then the asset a stream names in its metadata, then the nearest by shape signature.
   std::vector<std::int64_t> candidates;
   std::string match;
   auto add = [&](std::int64_t id) {
     if (std::find(candidates.begin(), candidates.end(), id) == candidates.end()) candidates.push_back(id);
   };
-  std::vector<store::IssuedCopy> all_copies = st.list_copies(std::nullopt, kAllCopies);
-  for (const auto& c : all_copies) {
-    try {
-      for (const auto& f : json::parse(c.outputs_json).value("files", json::array()))
-        if (f.value("sha256", "") == sha) add(c.asset_id), match = "hash of issued copy " + std::to_string(c.id);
-    } catch (const json::exception&) {
+  for (const auto& [asset_id, copies] : copies_of)
+    for (const auto& c : copies) {
+      try {
+        for (const auto& f : json::parse(c.outputs_json).value("files", json::array()))
+          if (f.value("sha256", "") == sha) {
+            add(asset_id);
+            if (match.empty())
+              match = "hash of issued copy " + std::to_string(c.id) + " (" + f.value("role", "decoded") + ")";
+          }
+      } catch (const json::exception&) {
+      }
     }
-  }
   if (auto a = st.find_asset(sha)) {
     add(a->id);
     if (match.empty()) match = "hash of original asset " + std::to_string(a->id);
   }
+  if (candidates.empty() && stream_meta.count("asset") && store::is_sha256_hex(stream_meta["asset"]))
+    if (auto a = st.find_asset(stream_meta["asset"])) add(a->id), match = "stream metadata";
   if (candidates.empty()) {
     jobs::ShapeSignature sig = jobs::shape_signature(suspect);
     std::vector<std::pair<double, std::int64_t>> ranked;
-    for (const auto& a : st.list_assets(kAllCopies)) {
-      auto row = st.find_polyhedron(a.id, jobs::PrepareParams{}.key());
-      if (!row) continue;
-      try {
-        auto meta = json::parse(row->meta_json);
-        double d = jobs::signature_distance(sig, jobs::ShapeSignature::from_json(meta.at("signature").dump()));
-        if (d < 0.5) ranked.push_back({d, a.id});
-      } catch (const std::exception&) {
-      }
+    for (const auto& [asset_id, copies] : copies_of) {
+      auto as = asset_signature(st, asset_id, copies);
+      if (!as) continue;
+      double d = jobs::signature_distance(sig, *as);
+      if (d < 0.5) ranked.push_back({d, asset_id});
     }
     std::sort(ranked.begin(), ranked.end());
     for (const auto& r : ranked) {
@@ -295,37 +414,52 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
     if (!candidates.empty()) match = "shape signature";
   }
 
+  // Every copy ever issued for a candidate, grouped by the polyhedron it was embedded in (a
+  // change of compression options gives later copies another polyhedron).
   struct Tried {
-    std::int64_t asset_id;
-    jobs::Registration reg;
+    std::int64_t asset_id = 0;
+    std::int64_t polyhedron_id = 0;
+    Aligned aligned;
     jobs::Verdict verdict;
     std::vector<store::IssuedCopy> copies;
   };
   std::vector<Tried> tried;
   int total = 0;
   for (std::int64_t asset_id : candidates) {
-    auto la = load_prepared(st, asset_id);
-    if (!la) continue;
-    Tried t{asset_id, jobs::register_suspect(la->prepared, suspect), {}, st.list_copies(asset_id, kAllCopies)};
-    std::vector<jobs::CopyCandidate> cands;
-    for (const auto& c : t.copies) {
-      jobs::CopyCandidate cc;
-      cc.copy_id = c.id;
-      cc.key = st.customer_key(c.customer_id, c.key_version).key.bytes();
-      if (c.nonce.size() != cc.nonce.size()) continue;
-      std::copy(c.nonce.begin(), c.nonce.end(), cc.nonce.begin());
-      try {
-        cc.payload = jobs::parse_payload_hex(c.payload_hex);
-        cc.settings = settings_from_json(json::parse(c.params_json));
-      } catch (const std::exception&) {
+    std::map<std::string, std::vector<store::IssuedCopy>> groups;
+    for (const auto& c : copies_of[asset_id]) groups[prepare_key_of(c)].push_back(c);
+    for (auto& [key, copies] : groups) {
+      auto row = st.find_polyhedron(asset_id, key);
+      if (!row) {
+        spdlog::warn("asset {}: {} copies name a polyhedron that is not cached (\"{}\")", asset_id, copies.size(), key);
         continue;
       }
-      cands.push_back(cc);
+      jobs::PreparedAsset prep = decode_row(st, *row);
+      Tried t;
+      t.asset_id = asset_id;
+      t.polyhedron_id = row->id;
+      t.aligned = align_to(prep, suspect);
+      t.copies = std::move(copies);
+      std::vector<jobs::CopyCandidate> cands;
+      for (const auto& c : t.copies) {
+        jobs::CopyCandidate cc;
+        cc.copy_id = c.id;
+        if (c.nonce.size() != cc.nonce.size()) continue;
+        std::copy(c.nonce.begin(), c.nonce.end(), cc.nonce.begin());
+        try {
+          cc.payload = jobs::parse_payload_hex(c.payload_hex);
+          cc.settings = settings_from_json(json::parse(c.params_json));
+        } catch (const std::exception&) {
+          continue;
+        }
+        cc.key = st.customer_key(c.customer_id, c.key_version).key.bytes();
+        cands.push_back(cc);
+      }
+      if (std::isfinite(t.aligned.residual) && prep.control.num_vertices() == t.aligned.points.rows())
+        t.verdict = jobs::detect_copy(prep, t.aligned.points, cands, cfg.p_threshold);
+      total += t.verdict.copies_tried;
+      tried.push_back(std::move(t));
     }
-    if (static_cast<int>(la->prepared.control.num_vertices()) == t.reg.points.rows())
-      t.verdict = jobs::detect_copy(la->prepared, t.reg.points, cands, cfg.p_threshold);
-    total += t.verdict.copies_tried;
-    tried.push_back(std::move(t));
   }
 
   // Bonferroni over every copy tried for every candidate asset.
@@ -341,9 +475,11 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
   const Tried* best_t = nullptr;
   for (auto& t : tried) {
     json cj{{"asset_id", t.asset_id},
-            {"registration", t.reg.method},
-            {"registration_rms", std::isfinite(t.reg.rms) ? t.reg.rms : -1.0},
-            {"matched_fraction", t.reg.matched_fraction},
+            {"polyhedron_id", t.polyhedron_id},
+            {"resync_method", t.aligned.method},
+            {"resync_level", t.aligned.level},
+            {"resync_residual", std::isfinite(t.aligned.residual) ? t.aligned.residual : -1.0},
+            {"matched_fraction", t.aligned.matched_fraction},
             {"copies", json::array()}};
     for (auto& s : t.verdict.scores) {
       s.corrected_p = std::min(1.0, s.p_value * std::max(1, total));
@@ -368,6 +504,8 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
     d.correlation = best->correlation;
     d.p_value = best->corrected_p;
     details["best_neg_log10_corrected_p"] = std::max(0.0, best->neg_log10_p - std::log10(std::max(1, total)));
+    details["resync_method"] = best_t->aligned.method;
+    details["resync_residual"] = best_t->aligned.residual;
     int bits = 32;
     for (const auto& c : best_t->copies)
       if (c.id == best->copy_id) {
@@ -399,9 +537,14 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
   if (details.contains("best_neg_log10_corrected_p")) result["neg_log10_p"] = details["best_neg_log10_corrected_p"];
   if (d.correlation) result["correlation"] = *d.correlation;
   if (!d.decoded_payload_hex.empty()) result["decoded_payload"] = d.decoded_payload_hex;
+  if (best_t) {
+    result["resync_method"] = best_t->aligned.method;
+    result["resync_residual"] = best_t->aligned.residual;
+  }
   rec.result_json = result.dump();
-  spdlog::info("detect {}: {} (match: {}; {} copies tried; best corrected p {:.3g})", name, d.verdict,
-               match.empty() ? "none" : match, total, d.p_value ? *d.p_value : 1.0);
+  spdlog::info("detect {}: {} (match: {}; {} copies tried; best corrected p {:.3g}; resync {} residual {:.3g})", name,
+               d.verdict, match.empty() ? "none" : match, total, d.p_value ? *d.p_value : 1.0,
+               best_t ? best_t->aligned.method : "none", best_t ? best_t->aligned.residual : 0.0);
   return rec;
 }
 

@@ -48,8 +48,10 @@ store::EnqueueResult submit_protect(store::Store& st, const std::string& custome
 store::EnqueueResult submit_detect(store::Store& st, const std::string& path, const std::string& name,
                                    int max_attempts, const std::string& actor);
 
-// The output file a protect job writes for (customer, asset, name, format).
-std::string output_path_for(const Config& cfg, const std::string& customer, const std::string& name,
-                            const std::string& asset_sha256, const std::string& format);
+// The output files of a protect job, without extension: <output>/<customer>/<stem>-<12 hex>,
+// the hex from BLAKE2b of the copy's idempotency key. The job writes <base>.mmc (the watermarked
+// stream) and <base>.<format> (the stream decoded).
+std::string output_base_for(const Config& cfg, const std::string& customer, const std::string& name,
+                            const std::string& copy_key);
 
 }  // namespace mm::service

@@ -2,8 +2,10 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -11,7 +13,14 @@ namespace mm::jobs {
 
 namespace {
 
-constexpr char kPolyMagic[8] = {'M', 'M', 'P', 'O', 'L', 'Y', '0', '1'};
+constexpr char kPolyMagicV1[8] = {'M', 'M', 'P', 'O', 'L', 'Y', '0', '1'};
+constexpr char kPolyMagic[8] = {'M', 'M', 'P', 'O', 'L', 'Y', '0', '2'};
+
+std::string shortest(double d) {
+  char buf[32];
+  auto r = std::to_chars(buf, buf + sizeof buf, d);
+  return std::string(buf, r.ptr);
+}
 
 struct Writer {
   std::vector<std::uint8_t> out;
@@ -41,10 +50,15 @@ struct Reader {
   void need(std::size_t n) const {
     if (n > in.size() - pos) fail("truncated prepared-asset record");
   }
-  void magic(const char (&m)[8]) {
+  // 2 for the current format, 1 for records of the uncompressed era.
+  int magic() {
     need(8);
-    if (std::memcmp(in.data() + pos, m, 8) != 0) fail("not a prepared-asset record (bad magic)");
+    int v = std::memcmp(in.data() + pos, kPolyMagic, 8) == 0     ? 2
+            : std::memcmp(in.data() + pos, kPolyMagicV1, 8) == 0 ? 1
+                                                                 : 0;
+    if (v == 0) fail("not a prepared-asset record (bad magic)");
     pos += 8;
+    return v;
   }
   std::uint64_t u64() {
     need(8);
@@ -77,14 +91,19 @@ struct Reader {
 }  // namespace
 
 std::string PrepareParams::key() const {
-  // v1: control polyhedron = normalised input mesh, dense Kirchhoff basis.
-  // max_vertices only refuses inputs and never changes a prepared result, so it is not part of
-  // the key. Bump the version when the preparation itself changes (e.g. compression lands).
-  return "prepare-v1;control=normalised-input;basis=dense-kirchhoff";
+  // v2: control polyhedron = compress(original, compression), dense Kirchhoff basis. Every
+  // compression option changes the polyhedron, so all are in the key (doubles in shortest
+  // round-trip form); max_control_vertices only refuses and is not. v1 (normalised input mesh)
+  // rows stay readable for the copies issued from them.
+  const CompressOptions& c = compression;
+  return "prepare-v2;compress;tolerance=" + shortest(c.tolerance) + ";max_vertices=" + std::to_string(c.max_vertices) +
+         ";levels=" + std::to_string(c.levels) + ";angle=" + shortest(c.angle_degrees) +
+         ";max_rounds=" + std::to_string(c.max_rounds) + ";basis=dense-kirchhoff";
 }
 
 std::string ShapeSignature::to_json() const {
   nlohmann::json j;
+  j["version"] = version;
   j["vertices"] = vertices;
   j["faces"] = faces;
   j["box"] = {box[0], box[1], box[2]};
@@ -96,6 +115,7 @@ ShapeSignature ShapeSignature::from_json(const std::string& text) {
   try {
     auto j = nlohmann::json::parse(text);
     ShapeSignature s;
+    s.version = j.contains("version") ? j.at("version").get<int>() : 1;
     s.vertices = j.at("vertices").get<int>();
     s.faces = j.at("faces").get<int>();
     for (int i = 0; i < 3; ++i) {
@@ -113,26 +133,51 @@ ShapeSignature shape_signature(const Mesh& mesh) {
   s.vertices = mesh.num_vertices();
   s.faces = mesh.num_faces();
   if (mesh.num_vertices() == 0) return s;
-  Points p = mesh.points;
+  const Points& p = mesh.points;
   Eigen::Vector3d lo = p.colwise().minCoeff().transpose();
   Eigen::Vector3d hi = p.colwise().maxCoeff().transpose();
   double side = (hi - lo).maxCoeff();
   if (!(side > 0)) return s;
   for (int i = 0; i < 3; ++i) s.box[i] = (hi[i] - lo[i]) / side;
-  Eigen::RowVector3d mean = p.colwise().mean();
-  Eigen::MatrixXd c = (p.rowwise() - mean) / side;
-  Eigen::Matrix3d cov = (c.transpose() * c) / static_cast<double>(p.rows());
+  // Surface integrals over fan-triangulated faces, in the box frame scaled to side 1:
+  // int_T x dA = A c and int_T x x^T dA = A/12 (sum v v^T + s s^T) with s the vertex sum.
+  double area = 0;
+  Eigen::Vector3d first = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
+  auto at = [&](int v) -> Eigen::Vector3d { return (p.row(v).transpose() - lo) / side; };
+  for (const auto& f : mesh.faces) {
+    if (f.size() < 3) continue;
+    bool ok = true;
+    for (int v : f) ok = ok && v >= 0 && v < mesh.num_vertices();
+    if (!ok) continue;
+    Eigen::Vector3d a = at(f[0]);
+    for (std::size_t k = 1; k + 1 < f.size(); ++k) {
+      Eigen::Vector3d b = at(f[k]), c = at(f[k + 1]);
+      double t = 0.5 * (b - a).cross(c - a).norm();
+      if (!(t > 0)) continue;
+      Eigen::Vector3d sum = a + b + c;
+      area += t;
+      first += t * sum / 3.0;
+      second += t / 12.0 * (a * a.transpose() + b * b.transpose() + c * c.transpose() + sum * sum.transpose());
+    }
+  }
+  if (!(area > 0)) return s;
+  Eigen::Vector3d mean = first / area;
+  Eigen::Matrix3d cov = second / area - mean * mean.transpose();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-  for (int i = 0; i < 3; ++i) s.moments[i] = es.eigenvalues()[i];
+  for (int i = 0; i < 3; ++i) s.moments[i] = std::max(0.0, es.eigenvalues()[i]);
   return s;
 }
 
 double signature_distance(const ShapeSignature& a, const ShapeSignature& b) {
+  if (a.version != b.version) return std::numeric_limits<double>::infinity();
   double d = 0;
   for (int i = 0; i < 3; ++i) d += std::abs(a.box[i] - b.box[i]);
   for (int i = 0; i < 3; ++i) d += 4.0 * std::abs(std::sqrt(a.moments[i]) - std::sqrt(b.moments[i]));
-  double nv = std::max(1, std::max(a.vertices, b.vertices));
-  d += std::abs(a.vertices - b.vertices) / nv;
+  if (a.version == 1) {  // vertex-based signatures also compared vertex counts
+    double nv = std::max(1, std::max(a.vertices, b.vertices));
+    d += std::abs(a.vertices - b.vertices) / nv;
+  }
   return d;
 }
 
@@ -140,21 +185,28 @@ PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
                             const std::string& source) {
   const int n = original.num_vertices();
   if (n < 4) throw InputError(source, "mesh has " + std::to_string(n) + " vertices; need at least 4");
-  if (n > params.max_vertices)
-    throw InputError(source, "mesh has " + std::to_string(n) +
-                                 " vertices; the dense spectral basis is limited to " +
-                                 std::to_string(params.max_vertices) +
-                                 " (config watermark.max_vertices) until compression lands");
   if (original.faces.empty()) throw InputError(source, "mesh has no faces");
+  if (params.compression.max_vertices > params.max_control_vertices)
+    throw std::invalid_argument("control vertex budget " + std::to_string(params.compression.max_vertices) +
+                                " exceeds the dense spectral basis limit " +
+                                std::to_string(params.max_control_vertices));
   PreparedAsset a;
-  a.signature = shape_signature(original);
-  a.control = original;
   try {
-    a.normalization = unit_box_normalization(original.points);
-  } catch (const std::invalid_argument& e) {
-    throw InputError(source, e.what());
+    a.compression = compress(original, params.compression, source);
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::invalid_argument& e) {  // e.g. a refined size beyond the subdivision guard
+    throw InputError(source, std::string("cannot compress: ") + e.what());
   }
+  a.control = a.compression.control;
+  if (a.control.num_vertices() > params.max_control_vertices)
+    throw InputError(source, "control polyhedron has " + std::to_string(a.control.num_vertices()) +
+                                 " vertices; the dense spectral basis is limited to " +
+                                 std::to_string(params.max_control_vertices) + " (config watermark.max_vertices)");
+  a.normalization = a.compression.normalization;
   apply(a.normalization, a.control.points);
+  a.levels = a.compression.levels;
+  a.signature = shape_signature(original);
   a.basis = compute_basis(a.control);
   return a;
 }
@@ -180,6 +232,7 @@ std::vector<std::uint8_t> encode_polyhedron(const PreparedAsset& a) {
   for (int c : m.corners) w.i32(c);
   for (int k = 0; k < 3; ++k) w.f64(a.normalization.offset[k]);
   w.f64(a.normalization.scale);
+  w.i32(a.levels);
   std::string sig = a.signature.to_json();
   w.u64(sig.size());
   w.raw(sig.data(), sig.size());
@@ -191,7 +244,7 @@ PreparedAsset decode_prepared(const std::vector<std::uint8_t>& poly,
   PreparedAsset a;
   {
     Reader r{poly, source};
-    r.magic(kPolyMagic);
+    const int version = r.magic();
     auto n = r.count(24);
     a.control.points.resize(static_cast<Eigen::Index>(n), 3);
     for (std::uint64_t i = 0; i < n; ++i)
@@ -211,12 +264,22 @@ PreparedAsset decode_prepared(const std::vector<std::uint8_t>& poly,
     for (auto& e : a.control.creases) {
       e.first = r.i32();
       e.second = r.i32();
+      if (e.first < 0 || e.second < 0 || static_cast<std::uint64_t>(e.first) >= n ||
+          static_cast<std::uint64_t>(e.second) >= n)
+        r.fail("crease index out of range");
     }
     auto nk = r.count(4);
     a.control.corners.resize(nk);
-    for (auto& c : a.control.corners) c = r.i32();
+    for (auto& c : a.control.corners) {
+      c = r.i32();
+      if (c < 0 || static_cast<std::uint64_t>(c) >= n) r.fail("corner index out of range");
+    }
     for (int k = 0; k < 3; ++k) a.normalization.offset[k] = r.f64();
     a.normalization.scale = r.f64();
+    if (version >= 2) {
+      a.levels = r.i32();
+      if (a.levels < 0 || a.levels > 8) r.fail("subdivision levels out of range");
+    }
     auto ns = r.count(1);
     std::string sig(reinterpret_cast<const char*>(poly.data() + r.pos), ns);
     r.pos += ns;

@@ -3,14 +3,14 @@
 // the exact spectral basis of the polyhedron's connectivity (persisted, because recomputing it at
 // detection time could pick different eigenvectors inside repeated eigenvalues).
 //
-// Today the control polyhedron is the normalised input mesh itself; when the compressor lands,
-// prepare_asset() calls it and everything downstream stays the same (copies are then the
-// subdivided watermarked polyhedron).
+// The control polyhedron is the compressor's (fitting/compress.h): copies are the watermarked
+// polyhedron as a .mmc stream and that stream decoded (subdivided at `levels`).
 #pragma once
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "fitting/compress.h"
 #include "meshio/mesh.h"
 #include "meshio/normalize.h"
 #include "spectral/spectral_basis.h"
@@ -18,37 +18,49 @@
 namespace mm::jobs {
 
 struct PrepareParams {
-  // The basis is dense (n x n doubles), so its size is capped before anything is allocated.
-  int max_vertices = 4000;  // <= kMaxBasisVertices
-  std::string key() const;  // canonical cache key of the preparation method
+  CompressOptions compression;  // every field changes the result, so all are in key()
+  // The basis is dense (n x n doubles): a control budget above this is refused before compressing,
+  // and so is a control polyhedron that ends up larger.
+  int max_control_vertices = 4000;  // <= kMaxBasisVertices
+  std::string key() const;  // canonical cache key of the preparation method and its options
 };
 
 // Cheap descriptor used to find the asset a suspect file came from when its hash is unknown.
+// Computed on the surface (area-weighted), not on the vertices, so a decoded copy with 20x the
+// vertices, a remeshed or a subdivided copy have about the same signature as the original.
 struct ShapeSignature {
-  int vertices = 0;
-  int faces = 0;
+  int version = 2;               // 1: vertex-based (old rows); compare only equal versions
+  int vertices = 0;              // informative only
+  int faces = 0;                 // informative only
   double box[3] = {0, 0, 0};     // bounding box sides divided by the largest side
-  double moments[3] = {0, 0, 0}; // sorted eigenvalues of the normalised point covariance
+  double moments[3] = {0, 0, 0}; // sorted eigenvalues of the area-weighted surface covariance / side^2
   std::string to_json() const;
   static ShapeSignature from_json(const std::string& json);  // InputError on malformed
 };
 ShapeSignature shape_signature(const Mesh& mesh);
-// 0 for identical shapes; grows with box/moment differences and relative vertex-count change.
+// 0 for identical shapes; grows with box and moment differences. Scale, shift and tessellation
+// invariant. Infinity for signatures of different versions.
 double signature_distance(const ShapeSignature& a, const ShapeSignature& b);
 
 struct PreparedAsset {
-  Mesh control;                 // normalised into the unit box
+  Mesh control;                 // normalised into the unit box; creases and corners tagged
   Normalization normalization;  // original units -> unit box
   SpectralBasis basis;          // of control's connectivity
   ShapeSignature signature;     // of the original
+  int levels = 0;               // subdivision levels of the decoded copy (0: old uncompressed rows)
+  CompressResult compression;   // statistics of the fit (prepare_asset only; not serialised)
 };
 
-// Throws InputError(source, ...) if the mesh is unusable (too many vertices, degenerate box).
+// Compresses the part (throws InputError(source, reason) when it cannot be compressed or the
+// control polyhedron exceeds the basis cap), normalises the control polyhedron and computes its
+// exact spectral basis.
 PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
                             const std::string& source);
 
-// Exact little-endian serialisation (doubles bit for bit); the basis uses serialize_basis(). Decoding checks every size against the
-// buffer and throws InputError(source, ...) on anything inconsistent.
+// Exact little-endian serialisation (doubles bit for bit; format MMPOLY02 adds `levels`, MMPOLY01
+// records of the uncompressed era still decode with levels 0); the basis uses serialize_basis().
+// Decoding checks every size and index against the buffer and throws InputError(source, ...) on
+// anything inconsistent.
 std::vector<std::uint8_t> encode_polyhedron(const PreparedAsset& asset);
 PreparedAsset decode_prepared(const std::vector<std::uint8_t>& polyhedron,
                               const std::vector<std::uint8_t>& basis, const std::string& source);

@@ -1,6 +1,9 @@
-// Protect: one customer's watermarked copy of a prepared asset.
+// Protect: one customer's watermarked copy of a prepared asset, as the files a customer receives.
 #pragma once
 #include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
 
 #include "jobs/prepared_asset.h"
 #include "watermark/watermark.h"
@@ -13,9 +16,27 @@ struct WatermarkSettings {
 };
 
 // Embeds payload_to_bits(payload) with the customer's key and the copy's nonce into the control
-// polyhedron and returns the copy in the part's own units (same vertex order and faces as
-// asset.control). Pure: no I/O; the caller writes and records it.
+// polyhedron and returns the watermarked polyhedron in the part's own units (same vertex order,
+// faces, creases and corners as asset.control). Pure: no I/O; the caller writes and records it.
 Mesh make_copy(const PreparedAsset& asset, const Key& key, const Nonce& nonce,
                std::uint64_t payload, const WatermarkSettings& settings);
+
+struct StreamSettings {
+  // The quantisation step (largest side / 2^bits) must stay well below the mark's move in the
+  // unit box (T a = 5e-4 by default): 16 bits give 1.5e-5.
+  int quant_bits = 16;
+  std::map<std::string, std::string> metadata;  // codec rules; never secrets, never the payload
+};
+
+struct CopyFiles {
+  std::vector<std::uint8_t> stream;  // .mmc of the watermarked polyhedron
+  Mesh decoded;  // that stream decoded and subdivided at asset.levels (what a viewer shows)
+};
+
+// The decoded mesh is made from the decoded stream, not from the exact polyhedron, so it is
+// exactly what `meshmark decompress` gives for the stream. triangles_only: triangulate (STL).
+// Throws InputError("encode", ...) if the polyhedron cannot be encoded.
+CopyFiles make_copy_files(const PreparedAsset& asset, const Mesh& marked_control,
+                          const StreamSettings& stream, bool triangles_only);
 
 }  // namespace mm::jobs
