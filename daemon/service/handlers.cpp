@@ -10,7 +10,10 @@
 #include <set>
 #include <spdlog/spdlog.h>
 #include <limits>
+#include <list>
 #include <map>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string_view>
 
@@ -19,7 +22,6 @@
 #include "jobs/payload.h"
 #include "jobs/prepared_asset.h"
 #include "jobs/protect.h"
-#include "jobs/registration.h"
 #include "meshio/read_mesh.h"
 
 namespace mm::service {
@@ -323,9 +325,46 @@ struct Aligned {
   double matched_fraction = 0;
 };
 
-Aligned align_to(const jobs::PreparedAsset& asset, const Mesh& suspect) {
-  jobs::Registration r = jobs::register_suspect(asset, suspect);
-  return {r.points, r.method, 0, r.rms, r.matched_fraction};
+// Resynchronisation contexts are immutable and shareable; building one (subdivision operators,
+// factorisations, AABB trees) costs more than a detection, so the last few are kept, keyed by
+// the polyhedron's content address (a blob never changes).
+std::shared_ptr<const ResyncContext> resync_context(const std::string& polyhedron_blob,
+                                                    const jobs::PreparedAsset& asset) {
+  static std::mutex mu;
+  static std::list<std::pair<std::string, std::shared_ptr<const ResyncContext>>> lru;
+  constexpr std::size_t kKeep = 8;
+  {
+    std::lock_guard<std::mutex> lock(mu);
+    for (auto it = lru.begin(); it != lru.end(); ++it)
+      if (it->first == polyhedron_blob) {
+        lru.splice(lru.begin(), lru, it);
+        return lru.front().second;
+      }
+  }
+  auto ctx = std::make_shared<const ResyncContext>(jobs::make_resync_context(asset));
+  std::lock_guard<std::mutex> lock(mu);
+  lru.emplace_front(polyhedron_blob, ctx);
+  if (lru.size() > kKeep) lru.pop_back();
+  return ctx;
+}
+
+Aligned align_to(const std::string& polyhedron_blob, const jobs::PreparedAsset& asset, const Mesh& suspect,
+                 const std::string& name) {
+  Aligned a;
+  try {
+    auto ctx = resync_context(polyhedron_blob, asset);
+    ResyncOptions o;
+    o.source = name;
+    Resynchronized r = resynchronize(*ctx, suspect, o);
+    a.points = std::move(r.points);
+    a.method = r.method;
+    a.level = r.level;
+    a.residual = r.residual_rms;
+    a.matched_fraction = r.matched_fraction;
+  } catch (const InputError& e) {  // this candidate does not fit; others may
+    a.method = std::string("none: ") + e.reason();
+  }
+  return a;
 }
 
 std::string prepare_key_of(const store::IssuedCopy& c) {
@@ -438,7 +477,7 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
       Tried t;
       t.asset_id = asset_id;
       t.polyhedron_id = row->id;
-      t.aligned = align_to(prep, suspect);
+      t.aligned = align_to(row->polyhedron_blob, prep, suspect, name);
       t.copies = std::move(copies);
       std::vector<jobs::CopyCandidate> cands;
       for (const auto& c : t.copies) {

@@ -1,18 +1,20 @@
-// Protect and detect handlers as pure functions: a copy is attributed to its own copy (also after
-// noise, rescaling and vertex reordering), never to another customer's, and an unmarked or
-// foreign mesh is attributed to nobody.
+// Protect and detect as pure functions on a compressed asset: each customer's copy is attributed
+// to that copy in every form it can leak in (the .mmc stream, the decoded mesh, noisy, rescaled
+// and rotated, subdivided once more, the bare polyhedron), never to another customer's copy; the
+// unmarked original and a foreign part are attributed to nobody.
 #include <gtest/gtest.h>
 
-#include <algorithm>
-#include <numeric>
+#include <Eigen/Geometry>
+#include <memory>
 #include <random>
 
+#include "codec/stream.h"
 #include "common/shared_meshes.h"
 #include "jobs/detect.h"
 #include "jobs/payload.h"
 #include "jobs/protect.h"
-#include "jobs/registration.h"
 #include "meshio/read_mesh.h"
+#include "subdivision/subdivide.h"
 
 namespace mm::jobs {
 namespace {
@@ -30,111 +32,155 @@ Nonce nonce_from(int seed) {
   return n;
 }
 
+// Uniform noise of +-amplitude x the largest bounding-box side, as `meshmark attack noise`.
+Mesh with_noise(Mesh m, double amplitude, unsigned seed) {
+  double side = (m.points.colwise().maxCoeff() - m.points.colwise().minCoeff()).maxCoeff();
+  std::mt19937 g(seed);
+  std::uniform_real_distribution<double> u(-amplitude * side, amplitude * side);
+  for (Eigen::Index i = 0; i < m.points.rows(); ++i)
+    for (int k = 0; k < 3; ++k) m.points(i, k) += u(g);
+  return m;
+}
+
+// Shared by the suite: compressing fandisk and building its resync context cost seconds.
+struct Fixture {
+  Mesh original;
+  PreparedAsset asset;
+  std::vector<CopyCandidate> copies;
+  std::vector<CopyFiles> files;
+  std::unique_ptr<ResyncContext> ctx;
+};
+Fixture* fx = nullptr;
+
 struct ProtectDetect : ::testing::Test {
-  void SetUp() override {
-    MM_REQUIRE_SHARED_MESHES();
-    original = read_mesh(test::shared_mesh("fandisk_quads.off"));
-    asset = prepare_asset(original, {}, "fandisk_quads.off");
+  static void SetUpTestSuite() {
+    if (fx || !test::shared_meshes_present()) return;
+    fx = new Fixture;
+    fx->original = read_mesh(test::shared_mesh("fandisk_quads.off"));
+    fx->asset = prepare_asset(fx->original, {}, "fandisk_quads.off");
     for (int i = 0; i < 3; ++i) {
       CopyCandidate c;
       c.copy_id = 100 + i;
       c.key = key_from(i + 1);
       c.nonce = nonce_from(i + 1);
       c.payload = 0x1000u + static_cast<unsigned>(i) * 0x3377u;
-      copies.push_back(c);
+      fx->copies.push_back(c);
+      Mesh marked = make_copy(fx->asset, c.key, c.nonce, c.payload, c.settings);
+      fx->files.push_back(make_copy_files(fx->asset, marked, {}, false));
     }
+    fx->ctx = std::make_unique<ResyncContext>(make_resync_context(fx->asset));
   }
-  Mesh copy_of(int i) {
-    return make_copy(asset, copies[i].key, copies[i].nonce, copies[i].payload, copies[i].settings);
+  static void TearDownTestSuite() {
+    delete fx;
+    fx = nullptr;
   }
-  Mesh original;
-  PreparedAsset asset;
-  std::vector<CopyCandidate> copies;
+  void SetUp() override { MM_REQUIRE_SHARED_MESHES(); }
+
+  Verdict detect(const Mesh& suspect, std::string* method = nullptr, const std::vector<CopyCandidate>* copies = nullptr) {
+    Resynchronized r = resynchronize(*fx->ctx, suspect);
+    if (method) *method = r.method;
+    return detect_copy(fx->asset, r.points, copies ? *copies : fx->copies, 1e-6);
+  }
+  void expect_attributed(const Mesh& suspect, int i, const std::string& what, const std::string& method) {
+    std::string m;
+    Verdict v = detect(suspect, &m);
+    EXPECT_EQ(m, method) << what;
+    ASSERT_TRUE(v.attributed) << what << ": p " << v.best.corrected_p;
+    EXPECT_EQ(v.best.copy_id, fx->copies[i].copy_id) << what;
+    EXPECT_LT(v.best.corrected_p, 1e-9) << what;
+    EXPECT_EQ(v.best.decoded_payload, fx->copies[i].payload) << what;
+    for (const auto& s : v.scores)
+      if (s.copy_id != fx->copies[i].copy_id) EXPECT_GT(s.corrected_p, 1e-6) << what;
+    std::cout << what << ": -log10 p " << v.best.neg_log10_p << " (" << m << ")\n";
+  }
 };
 
-TEST_F(ProtectDetect, CopyKeepsConnectivityAndUnits) {
-  Mesh c = copy_of(0);
-  EXPECT_EQ(c.faces, original.faces);
-  double diag = (original.points.colwise().maxCoeff() - original.points.colwise().minCoeff()).norm();
-  double moved = (c.points - original.points).rowwise().norm().maxCoeff();
+TEST_F(ProtectDetect, PreparedAssetIsCompressed) {
+  EXPECT_LT(fx->asset.control.num_vertices(), fx->original.num_vertices() / 3);
+  EXPECT_FALSE(fx->asset.control.creases.empty());
+  EXPECT_EQ(fx->asset.levels, 3);
+  EXPECT_LT(fx->asset.compression.stats.hausdorff, 0.01 * fx->asset.compression.stats.diagonal);
+}
+
+TEST_F(ProtectDetect, CopyFilesAreTheMarkedStreamAndItsDecodedSurface) {
+  const CopyFiles& f = fx->files[0];
+  DecodedStream d = decode(f.stream, "copy");
+  EXPECT_EQ(d.mesh.num_vertices(), fx->asset.control.num_vertices());
+  EXPECT_EQ(d.quantization.bits, StreamSettings{}.quant_bits);
+  EXPECT_EQ(f.decoded.num_vertices(), subdivide(fx->asset.control, 3).num_vertices());
+  EXPECT_GT(f.decoded.num_vertices(), 5 * fx->original.num_vertices());
+  // The mark moves the part imperceptibly, in the part's own units.
+  Mesh unmarked = fx->asset.control;
+  undo(fx->asset.normalization, unmarked.points);
+  double side = (fx->original.points.colwise().maxCoeff() - fx->original.points.colwise().minCoeff()).maxCoeff();
+  double moved = (d.mesh.points - unmarked.points).rowwise().norm().maxCoeff();
   EXPECT_GT(moved, 0);
-  EXPECT_LT(moved, 0.05 * diag);  // imperceptible relative to the part, in the part's units
+  EXPECT_LT(moved, 0.01 * side);
+  // Copies differ from each other; the same inputs give the same bytes (crash re-runs).
+  EXPECT_NE(fx->files[0].stream, fx->files[1].stream);
+  const CopyCandidate& c = fx->copies[0];
+  EXPECT_EQ(make_copy_files(fx->asset, make_copy(fx->asset, c.key, c.nonce, c.payload, c.settings), {}, false).stream,
+            f.stream);
+  // STL copies are triangles.
+  CopyFiles tri = make_copy_files(fx->asset, d.mesh, {}, true);
+  for (const auto& face : tri.decoded.faces) EXPECT_EQ(face.size(), 3u);
 }
 
-TEST_F(ProtectDetect, AttributesExactCopyToItsCopyOnly) {
+TEST_F(ProtectDetect, EveryFormOfACopyIsAttributedToItsCopyOnly) {
   for (int i = 0; i < 3; ++i) {
-    Registration r = register_suspect(asset, copy_of(i));
-    EXPECT_EQ(r.method, "identity");
-    Verdict v = detect_copy(asset, r.points, copies, 1e-6);
-    ASSERT_TRUE(v.attributed) << i;
-    EXPECT_EQ(v.best.copy_id, copies[i].copy_id);
-    EXPECT_LT(v.best.corrected_p, 1e-9);
-    EXPECT_EQ(v.best.decoded_payload, copies[i].payload);
-    for (const auto& s : v.scores)
-      if (s.copy_id != copies[i].copy_id) EXPECT_GT(s.corrected_p, 1e-6);
+    const CopyFiles& f = fx->files[static_cast<std::size_t>(i)];
+    expect_attributed(decode(f.stream, "s").mesh, i, "stream " + std::to_string(i), "polyhedron");
+    expect_attributed(f.decoded, i, "decoded " + std::to_string(i), "subdivided");
   }
+  const CopyFiles& f = fx->files[1];
+  expect_attributed(with_noise(f.decoded, 5e-4, 1), 1, "decoded + noise 5e-4", "subdivided");
+  expect_attributed(with_noise(f.decoded, 1e-3, 2), 1, "decoded + noise 1e-3", "subdivided");
+  Mesh moved = f.decoded;
+  Eigen::Matrix3d rot = Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  moved.points = ((moved.points * rot.transpose()) * 2.5).rowwise() + Eigen::RowVector3d(10, -3, 4);
+  expect_attributed(moved, 1, "decoded rescaled, rotated, shifted", "subdivided");
+  // The polyhedron refined one level finer than the copies, in its own face order: exact.
+  Mesh marked = decode(f.stream, "s").mesh;
+  marked.faces = fx->asset.control.faces;
+  expect_attributed(subdivide(marked, 4), 1, "polyhedron at level 4", "subdivided");
+  // Known limit: a decoded copy subdivided once more by the leaker has to have its vertex order
+  // recovered by nearest neighbours at level 4, where the mark moves vertices by about their
+  // spacing; attribution is not reliable there (docs/daemon.md), but never goes to another copy.
+  Verdict finer = detect(subdivide(f.decoded, 1));
+  std::cout << "decoded subdivided once more: -log10 p " << finer.best.neg_log10_p << "\n";
+  if (finer.attributed) EXPECT_EQ(finer.best.copy_id, fx->copies[1].copy_id);
+  expect_attributed(with_noise(decode(f.stream, "s").mesh, 5e-4, 3), 1, "polyhedron + noise 5e-4", "polyhedron");
 }
 
-TEST_F(ProtectDetect, NoisyRescaledReorderedCopyIsStillAttributed) {
-  Mesh c = copy_of(1);
-  double diag = (original.points.colwise().maxCoeff() - original.points.colwise().minCoeff()).norm();
-  std::mt19937 g(42);
-  std::normal_distribution<double> noise(0, 2e-4 * diag);
-  for (Eigen::Index i = 0; i < c.points.rows(); ++i)
-    for (int k = 0; k < 3; ++k) c.points(i, k) += noise(g);
-  c.points *= 2.0;  // the leaker rescaled the part
-  // Reorder the vertices (a different exporter): the faces follow.
-  std::vector<int> perm(static_cast<std::size_t>(c.num_vertices()));
-  std::iota(perm.begin(), perm.end(), 0);
-  std::shuffle(perm.begin(), perm.end(), g);
-  Mesh shuffled = c;
-  for (int i = 0; i < c.num_vertices(); ++i) shuffled.points.row(perm[static_cast<std::size_t>(i)]) = c.points.row(i);
-  for (auto& f : shuffled.faces)
-    for (auto& v : f) v = perm[static_cast<std::size_t>(v)];
-  Registration r = register_suspect(asset, shuffled);
-  EXPECT_EQ(r.method, "nearest-neighbour");
-  EXPECT_GT(r.matched_fraction, 0.99);
-  Verdict v = detect_copy(asset, r.points, copies, 1e-6);
-  ASSERT_TRUE(v.attributed);
-  EXPECT_EQ(v.best.copy_id, copies[1].copy_id);
-  EXPECT_LT(v.best.corrected_p, 1e-9);
-}
-
-TEST_F(ProtectDetect, UnmarkedOriginalAndNoisyOriginalAreNotAttributed) {
-  Registration r = register_suspect(asset, original);
-  Verdict v = detect_copy(asset, r.points, copies, 1e-6);
-  EXPECT_FALSE(v.attributed);
-  Mesh noisy = original;
-  double diag = (original.points.colwise().maxCoeff() - original.points.colwise().minCoeff()).norm();
-  std::mt19937 g(7);
-  std::normal_distribution<double> noise(0, 1e-3 * diag);
-  for (Eigen::Index i = 0; i < noisy.points.rows(); ++i)
-    for (int k = 0; k < 3; ++k) noisy.points(i, k) += noise(g);
-  r = register_suspect(asset, noisy);
-  v = detect_copy(asset, r.points, copies, 1e-6);
-  EXPECT_FALSE(v.attributed);
-  EXPECT_GT(v.best.corrected_p, 1e-6);
-}
-
-TEST_F(ProtectDetect, ForeignMeshIsNotAttributed) {
+TEST_F(ProtectDetect, UnmarkedOriginalAndForeignPartAreNotAttributed) {
+  for (const Mesh& m : {fx->original, with_noise(fx->original, 5e-4, 4)}) {
+    Verdict v = detect(m);
+    EXPECT_FALSE(v.attributed);
+    EXPECT_GT(v.best.corrected_p, 1e-6);
+  }
+  // The unmarked polyhedron and its decoded surface carry no mark either.
+  Mesh unmarked = fx->asset.control;
+  EXPECT_FALSE(detect(unmarked).attributed);
+  EXPECT_FALSE(detect(subdivide(unmarked, 3)).attributed);
   Mesh foreign = read_mesh(test::shared_mesh("abc9.stl"));
-  Registration r = register_suspect(asset, foreign);
-  Verdict v = detect_copy(asset, r.points, copies, 1e-6);
-  EXPECT_FALSE(v.attributed);
+  try {
+    EXPECT_FALSE(detect(foreign).attributed);
+  } catch (const InputError&) {
+    // nothing matched: also no attribution
+  }
 }
 
 TEST_F(ProtectDetect, WrongPayloadOrWrongKeyIsNotAttributed) {
-  Mesh c = copy_of(2);
-  Registration r = register_suspect(asset, c);
+  const Mesh& c = fx->files[2].decoded;
   // Right key and nonce but a record claiming another payload: the payload check refuses.
-  auto lying = copies;
+  auto lying = fx->copies;
   lying[2].payload ^= 0x5;
-  Verdict v = detect_copy(asset, r.points, lying, 1e-6);
+  Verdict v = detect(c, nullptr, &lying);
   EXPECT_FALSE(v.attributed);
   EXPECT_FALSE(v.best.payload_matches);
   // Only other customers' keys on record: nothing passes.
-  std::vector<CopyCandidate> others = {copies[0], copies[1]};
-  v = detect_copy(asset, r.points, others, 1e-6);
+  std::vector<CopyCandidate> others = {fx->copies[0], fx->copies[1]};
+  v = detect(c, nullptr, &others);
   EXPECT_FALSE(v.attributed);
 }
 

@@ -6,6 +6,13 @@
 
 namespace mm::jobs {
 
+ResyncContext make_resync_context(const PreparedAsset& asset) {
+  // One level beyond the copies': a polyhedron refined once more in its own face order is matched
+  // index by index (exact); the surface fit is the fallback for everything else.
+  const int max_level = std::clamp(asset.levels + 1, 1, 4);
+  return ResyncContext(asset.control, max_level, std::clamp(asset.levels, 1, max_level));
+}
+
 Verdict detect_copy(const PreparedAsset& asset, const Points& registered,
                     const std::vector<CopyCandidate>& copies, double p_threshold) {
   Verdict v;

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "jobs/protect.h"
-#include "jobs/registration.h"
+#include "registration/resynchronize.h"
 
 namespace mm::jobs {
 
@@ -40,6 +40,12 @@ struct Verdict {
   std::vector<CopyScore> scores;  // one per candidate, in input order
 };
 
+// The resynchronisation context for suspects of this asset: its normalised control polyhedron,
+// recognising subdivision up to one level beyond the decoded copies' (a leaker may refine once
+// more); remeshed suspects are fitted against the surface at the copies' level.
+ResyncContext make_resync_context(const PreparedAsset& asset);
+
+// `registered`: the suspect resynchronised to asset.control (resynchronize(...).points).
 Verdict detect_copy(const PreparedAsset& asset, const Points& registered,
                     const std::vector<CopyCandidate>& copies, double p_threshold);
 

@@ -138,7 +138,6 @@ ShapeSignature shape_signature(const Mesh& mesh) {
   Eigen::Vector3d hi = p.colwise().maxCoeff().transpose();
   double side = (hi - lo).maxCoeff();
   if (!(side > 0)) return s;
-  for (int i = 0; i < 3; ++i) s.box[i] = (hi[i] - lo[i]) / side;
   // Surface integrals over fan-triangulated faces, in the box frame scaled to side 1:
   // int_T x dA = A c and int_T x x^T dA = A/12 (sum v v^T + s s^T) with s the vertex sum.
   double area = 0;
@@ -165,7 +164,17 @@ ShapeSignature shape_signature(const Mesh& mesh) {
   Eigen::Vector3d mean = first / area;
   Eigen::Matrix3d cov = second / area - mean * mean.transpose();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-  for (int i = 0; i < 3; ++i) s.moments[i] = std::max(0.0, es.eigenvalues()[i]);
+  const double trace = std::max(1e-300, cov.trace());
+  for (int i = 0; i < 3; ++i) s.moments[i] = std::max(0.0, es.eigenvalues()[i]) / trace;
+  // Extents along the principal axes, relative to the largest: a rotated copy has the same.
+  Eigen::Vector3d plo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), phi = -plo;
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    Eigen::Vector3d q = es.eigenvectors().transpose() * at(static_cast<int>(i));
+    plo = plo.cwiseMin(q);
+    phi = phi.cwiseMax(q);
+  }
+  Eigen::Vector3d ext = phi - plo;
+  for (int i = 0; i < 3; ++i) s.box[i] = ext[i] / std::max(1e-300, ext.maxCoeff());
   return s;
 }
 
@@ -195,7 +204,11 @@ PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
     a.compression = compress(original, params.compression, source);
   } catch (const InputError&) {
     throw;
-  } catch (const std::invalid_argument& e) {  // e.g. a refined size beyond the subdivision guard
+  } catch (const std::bad_alloc&) {
+    throw;  // may pass on a retry
+  } catch (const std::exception& e) {
+    // Deterministic (a singular fitting system, a refined size beyond the subdivision guard):
+    // the same input fails the same way again, so this is the input's problem.
     throw InputError(source, std::string("cannot compress: ") + e.what());
   }
   a.control = a.compression.control;

@@ -27,19 +27,20 @@ struct PrepareParams {
 
 // Cheap descriptor used to find the asset a suspect file came from when its hash is unknown.
 // Computed on the surface (area-weighted), not on the vertices, so a decoded copy with 20x the
-// vertices, a remeshed or a subdivided copy have about the same signature as the original.
+// vertices, a remeshed or a subdivided copy have about the same signature as the original; and
+// in the principal frame, so a rescaled, rotated or shifted copy has the same signature.
 struct ShapeSignature {
   int version = 2;               // 1: vertex-based (old rows); compare only equal versions
   int vertices = 0;              // informative only
   int faces = 0;                 // informative only
-  double box[3] = {0, 0, 0};     // bounding box sides divided by the largest side
-  double moments[3] = {0, 0, 0}; // sorted eigenvalues of the area-weighted surface covariance / side^2
+  double box[3] = {0, 0, 0};     // extents along the principal axes / the largest (v1: bounding box)
+  double moments[3] = {0, 0, 0}; // ascending eigenvalues of the area-weighted surface covariance / trace
   std::string to_json() const;
   static ShapeSignature from_json(const std::string& json);  // InputError on malformed
 };
 ShapeSignature shape_signature(const Mesh& mesh);
 // 0 for identical shapes; grows with box and moment differences. Scale, shift and tessellation
-// invariant. Infinity for signatures of different versions.
+// invariant (and rotation invariant from version 2). Infinity for different versions.
 double signature_distance(const ShapeSignature& a, const ShapeSignature& b);
 
 struct PreparedAsset {
@@ -52,7 +53,7 @@ struct PreparedAsset {
 };
 
 // Compresses the part (throws InputError(source, reason) when it cannot be compressed or the
-// control polyhedron exceeds the basis cap), normalises the control polyhedron and computes its
+// control polyhedron exceeds the basis cap; std::invalid_argument for a budget above the cap), normalises the control polyhedron and computes its
 // exact spectral basis.
 PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
                             const std::string& source);

@@ -22,8 +22,11 @@ CopyFiles make_copy_files(const PreparedAsset& asset, const Mesh& marked_control
   cp.quant_bits = stream.quant_bits;
   cp.metadata = stream.metadata;
   f.stream = encode(marked_control, cp);
-  DecodedStream d = decode(f.stream, "copy stream");
-  f.decoded = asset.levels > 0 ? decompress_to_level(d.mesh, asset.levels) : d.mesh;
+  // The stream keeps the vertex order but not the face order; refining the decoded points with the
+  // polyhedron's own faces gives the same surface with the asset's refined vertex numbering.
+  Mesh quantised = marked_control;
+  quantised.points = decode(f.stream, "copy stream").mesh.points;
+  f.decoded = asset.levels > 0 ? decompress_to_level(quantised, asset.levels) : quantised;
   if (triangles_only) f.decoded = triangulate(f.decoded);
   return f;
 }

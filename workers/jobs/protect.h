@@ -33,8 +33,10 @@ struct CopyFiles {
   Mesh decoded;  // that stream decoded and subdivided at asset.levels (what a viewer shows)
 };
 
-// The decoded mesh is made from the decoded stream, not from the exact polyhedron, so it is
-// exactly what `meshmark decompress` gives for the stream. triangles_only: triangulate (STL).
+// The decoded mesh is the decoded (quantised) stream refined at asset.levels: the surface
+// `meshmark decompress` gives for the stream, with vertices numbered from the polyhedron's face
+// order (the codec does not keep face order), so an unmodified copy corresponds to the asset's
+// refined mesh index by index. triangles_only: triangulate (STL).
 // Throws InputError("encode", ...) if the polyhedron cannot be encoded.
 CopyFiles make_copy_files(const PreparedAsset& asset, const Mesh& marked_control,
                           const StreamSettings& stream, bool triangles_only);
