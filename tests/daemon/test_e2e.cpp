@@ -1,5 +1,6 @@
-// End to end: the real meshmarkd process on a temporary folder. Protect the shared CAD meshes for
-// two customers through the drop folders, trace leaked copies, survive kill -9 mid-batch with
+// End to end: the real meshmarkd process on a temporary folder. Protect (compress, watermark, write
+// the .mmc stream and the decoded mesh) the shared CAD meshes for two customers through the drop
+// folders, trace leaked copies (decoded + noise, stream, noisy polyhedron), survive kill -9 mid-batch with
 // every job done exactly once, drain on SIGTERM, reload on SIGHUP, and batch with
 // `meshmark run --until-empty`.
 #include <gtest/gtest.h>
@@ -19,6 +20,7 @@
 #include <thread>
 
 #include "common/shared_meshes.h"
+#include "codec/stream.h"
 #include "meshio/read_mesh.h"
 #include "store/home.h"
 #include "store/store.h"
@@ -138,29 +140,50 @@ struct E2E : ::testing::Test {
     std::ofstream(drop / area / name) << bytes;  // written in place: picked up at close
   }
   json reason(const fs::path& p) { return json::parse(slurp(p.string() + ".json")); }
-  fs::path output_of(mm::store::Store& st, const std::string& customer, const std::string& mesh) {
+  // role: "decoded" (the mesh) or "stream" (the .mmc).
+  fs::path output_of(mm::store::Store& st, const std::string& customer, const std::string& mesh,
+                     const std::string& role = "decoded") {
     auto cust = st.find_customer(customer);
     for (const auto& c : st.list_copies()) {
       auto a = st.get_asset(c.asset_id);
-      if (c.customer_id == cust->id && a && a->name == mesh)
-        return json::parse(c.outputs_json)["files"][0]["path"].get<std::string>();
+      if (c.customer_id == cust->id && a && a->name == mesh) {
+        json outputs = json::parse(c.outputs_json);  // outlives the loop over its files
+        for (const auto& f : outputs["files"])
+          if (f["role"] == role) return f["path"].get<std::string>();
+      }
     }
     return {};
+  }
+  // Every issued file exists with its recorded hash; the mesh reads back, the stream decodes.
+  void expect_outputs_intact(const mm::store::IssuedCopy& c) {
+    auto files = json::parse(c.outputs_json)["files"];
+    ASSERT_EQ(files.size(), 2u) << c.outputs_json;
+    std::set<std::string> roles;
+    for (const auto& f : files) {
+      fs::path p = f["path"].get<std::string>();
+      roles.insert(f["role"].get<std::string>());
+      ASSERT_TRUE(fs::exists(p)) << p;
+      EXPECT_EQ(mm::store::sha256_file_hex(p.string()), f["sha256"].get<std::string>()) << p;
+      if (f["role"] == "stream") EXPECT_NO_THROW(mm::decode_file(p.string())) << p;
+      else EXPECT_NO_THROW(mm::read_mesh(p.string())) << p;
+    }
+    EXPECT_EQ(roles, (std::set<std::string>{"decoded", "stream"}));
+  }
+  // `meshmark attack noise` (uniform, relative to the largest side), as a leaker would.
+  void attack_noise(const fs::path& in, const fs::path& out, double amplitude, int seed) {
+    std::string cmd = std::string(MESHMARK_EXE) + " attack noise " + in.string() + " " + out.string() +
+                      " --amplitude " + std::to_string(amplitude) + " --seed " + std::to_string(seed) + " >/dev/null";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  }
+  void drop_file(const fs::path& file, const std::string& as) {
+    fs::create_directories(drop / "detect");
+    fs::copy_file(file, drop / "detect" / ("." + as + ".tmp"));
+    fs::rename(drop / "detect" / ("." + as + ".tmp"), drop / "detect" / as);
   }
   std::string log() { return slurp(dir / "meshmarkd.log") + slurp(dir / "meshmarkd.stderr"); }
 
   fs::path dir, home, drop, out;
 };
-
-mm::Mesh with_noise(const mm::Mesh& m, double relative_sigma, unsigned seed) {
-  mm::Mesh n = m;
-  double diag = (m.points.colwise().maxCoeff() - m.points.colwise().minCoeff()).norm();
-  std::mt19937 g(seed);
-  std::normal_distribution<double> noise(0, relative_sigma * diag);
-  for (Eigen::Index i = 0; i < n.points.rows(); ++i)
-    for (int k = 0; k < 3; ++k) n.points(i, k) += noise(g);
-  return n;
-}
 
 TEST_F(E2E, ProtectsTwoCustomersAndTracesTheLeak) {
   MM_REQUIRE_SHARED_MESHES();
@@ -189,53 +212,65 @@ TEST_F(E2E, ProtectsTwoCustomersAndTracesTheLeak) {
   auto copies = st->list_copies();
   ASSERT_EQ(copies.size(), 8u);
   EXPECT_EQ(st->list_assets().size(), 4u);  // deduplicated originals
-  for (const auto& c : copies) {
-    auto f = json::parse(c.outputs_json)["files"][0];
-    fs::path p = f["path"].get<std::string>();
-    ASSERT_TRUE(fs::exists(p)) << p;
-    EXPECT_EQ(mm::store::sha256_file_hex(p.string()), f["sha256"].get<std::string>());
-    EXPECT_NO_THROW(mm::read_mesh(p.string()));
-  }
+  for (const auto& c : copies) expect_outputs_intact(c);
   for (const auto& m : kMeshes) {
     json r = reason(drop / "done/protect/beta" / m);
     EXPECT_EQ(r["state"], "completed");
     EXPECT_EQ(r["result"]["customer"], "beta");
+    EXPECT_LT(r["result"]["control_vertices"].get<int>(), r["result"]["decoded_vertices"].get<int>());
   }
 
-  // Leaks: beta's fandisk with small noise; alpha's abc9 as is (exact hash); the unmarked
-  // original abc7; an innocent noisy original fandisk.
+  // Leaks: beta's decoded fandisk with noise 0.0005 of the box; alpha's abc9 stream as is (exact
+  // hash); alpha's decoded chamfer-cube, noisy; the unmarked original abc7; a noisy unmarked
+  // fandisk; a part never protected.
   fs::path beta_fandisk = output_of(*st, "beta", "fandisk_quads.off");
   ASSERT_FALSE(beta_fandisk.empty());
   fs::create_directories(dir / "leaks");
-  mm::write_mesh(with_noise(mm::read_mesh(beta_fandisk.string()), 2e-4, 1), (dir / "leaks/leak-fandisk.off").string());
-  fs::copy_file(dir / "leaks/leak-fandisk.off", drop / "detect/.leak-fandisk.off.tmp");
-  fs::rename(drop / "detect/.leak-fandisk.off.tmp", drop / "detect/leak-fandisk.off");
-  fs::copy_file(output_of(*st, "alpha", "abc9.stl"), drop / "detect/.x.tmp");
-  fs::rename(drop / "detect/.x.tmp", drop / "detect/leak-abc9.stl");
+  attack_noise(beta_fandisk, dir / "leaks/leak-fandisk.off", 0.0005, 1);
+  drop_file(dir / "leaks/leak-fandisk.off", "leak-fandisk.off");
+  drop_file(output_of(*st, "alpha", "abc9.stl", "stream"), "leak-abc9.mmc");
+  attack_noise(output_of(*st, "alpha", "chamfer-cube.off"), dir / "leaks/leak-cube.off", 0.0005, 2);
+  drop_file(dir / "leaks/leak-cube.off", "leak-cube.off");
   drop_mesh("detect", "abc7.stl", "original-abc7.stl");
-  mm::write_mesh(with_noise(mm::read_mesh(mm::test::shared_mesh("fandisk_quads.off")), 2e-4, 2),
-                 (dir / "leaks/innocent.off").string());
-  fs::copy_file(dir / "leaks/innocent.off", drop / "detect/.innocent.off.tmp");
-  fs::rename(drop / "detect/.innocent.off.tmp", drop / "detect/innocent.off");
-  ASSERT_TRUE(wait_for([&] { return count_files(drop / "done/detect") == 4; }, 120s)) << log();
+  attack_noise(mm::test::shared_mesh("fandisk_quads.off"), dir / "leaks/innocent.off", 0.0005, 3);
+  drop_file(dir / "leaks/innocent.off", "innocent.off");
+  drop_mesh("detect", "abc6.stl", "unrelated.stl");
+  ASSERT_TRUE(wait_for([&] { return count_files(drop / "done/detect") == 6; }, 240s)) << log();
 
   json leak = reason(drop / "done/detect/leak-fandisk.off")["result"];
-  std::cout << "noisy leak of beta's fandisk: " << leak.dump() << "\n";
+  std::cout << "noisy leak of beta's decoded fandisk: " << leak.dump() << "\n";
   EXPECT_EQ(leak["verdict"], "attributed") << leak.dump();
   EXPECT_EQ(leak["customer"], "beta") << leak.dump();
   EXPECT_LT(leak["p_value"].get<double>(), 1e-9) << leak.dump();
-  json exact = reason(drop / "done/detect/leak-abc9.stl")["result"];
+  EXPECT_EQ(leak["match"], "shape signature") << leak.dump();
+  EXPECT_EQ(leak["resync_method"], "subdivided") << leak.dump();
+  json exact = reason(drop / "done/detect/leak-abc9.mmc")["result"];
+  std::cout << "alpha's abc9 stream: " << exact.dump() << "\n";
   EXPECT_EQ(exact["verdict"], "attributed") << exact.dump();
   EXPECT_EQ(exact["customer"], "alpha") << exact.dump();
   EXPECT_LT(exact["p_value"].get<double>(), 1e-9);
-  for (const char* innocent : {"original-abc7.stl", "innocent.off"}) {
+  EXPECT_EQ(exact["resync_method"], "polyhedron") << exact.dump();
+  json cube = reason(drop / "done/detect/leak-cube.off")["result"];
+  std::cout << "alpha's noisy decoded chamfer-cube (24 control vertices): " << cube.dump() << "\n";
+  EXPECT_EQ(cube["verdict"], "attributed") << cube.dump();
+  EXPECT_EQ(cube["customer"], "alpha") << cube.dump();
+  // 24 control vertices carry few marked coefficients: below the threshold, not by 1e-9.
+  EXPECT_LT(cube["p_value"].get<double>(), 1e-6);
+  for (const char* innocent : {"original-abc7.stl", "innocent.off", "unrelated.stl"}) {
     json r = reason(drop / "done/detect" / innocent)["result"];
     std::cout << innocent << ": " << r.dump() << "\n";
-    EXPECT_EQ(r["verdict"], "no watermark found") << innocent << r.dump();
+    EXPECT_NE(r["verdict"], "attributed") << innocent << r.dump();
     EXPECT_FALSE(r.contains("customer")) << r.dump();
   }
+  EXPECT_EQ(reason(drop / "done/detect/original-abc7.stl")["result"]["verdict"], "no watermark found");
+  // Each verdict is recorded with the resynchronisation that produced it.
+  for (const auto& det : st->list_detections())
+    if (det.verdict == "attributed") {
+      auto dj = json::parse(det.details_json);
+      EXPECT_TRUE(dj.contains("resync_method") && dj.contains("resync_residual")) << det.details_json;
+    }
   auto dets = st->list_detections();
-  ASSERT_EQ(dets.size(), 4u);
+  ASSERT_EQ(dets.size(), 6u);
 
   ::kill(d.pid, SIGTERM);
   ASSERT_TRUE(d.wait_exit(30s));
@@ -303,16 +338,15 @@ TEST_F(E2E, KillNineMidBatchThenRestartCompletesEveryJobExactlyOnce) {
   std::set<std::string> outputs;
   for (const auto& c : copies) {
     pairs.insert({c.asset_id, c.customer_id});
-    auto f = json::parse(c.outputs_json)["files"][0];
-    outputs.insert(f["path"].get<std::string>());
-    EXPECT_EQ(mm::store::sha256_file_hex(f["path"].get<std::string>()), f["sha256"].get<std::string>());
-    EXPECT_NO_THROW(mm::read_mesh(f["path"].get<std::string>()));
+    json o = json::parse(c.outputs_json);
+    for (const auto& f : o["files"]) outputs.insert(f["path"].get<std::string>());
+    expect_outputs_intact(c);
   }
   EXPECT_EQ(pairs.size(), 16u);  // one copy per (asset, customer): no duplicates
-  EXPECT_EQ(outputs.size(), 16u);
+  EXPECT_EQ(outputs.size(), 32u);  // a stream and a decoded mesh each
   // Nothing half-written or duplicated on disk.
   for (const auto& c : customers) {
-    EXPECT_EQ(count_files(out / c, ".never"), 4) << c;
+    EXPECT_EQ(count_files(out / c, ".never"), 8) << c;
     EXPECT_EQ(count_files(drop / "done/protect" / c), 4) << c;
     for (const auto& e : fs::directory_iterator(out / c))
       EXPECT_NE(e.path().filename().string()[0], '.') << e.path();
