@@ -47,9 +47,15 @@ TEST_F(ConfigTest, FullConfigParses) {
       "output_format": "ply", "shutdown_grace_seconds": 5, "log_level": "debug",
       "watermark": {"method": "multiplicative", "strength": 0.02, "threshold": 0.1, "message_bits": 48,
                     "max_vertices": 3000},
+      "compression": {"tolerance": 0.01, "max_vertices": 400, "levels": 2, "angle": 40, "stream_bits": 14},
       "detect": {"p_threshold": 1e-9, "max_candidates": 5}})",
                           "test.json", dir.string(), true);
   EXPECT_EQ(c.workers, 4);
+  EXPECT_EQ(c.compression.tolerance, 0.01);
+  EXPECT_EQ(c.compression.max_vertices, 400);
+  EXPECT_EQ(c.compression.levels, 2);
+  EXPECT_EQ(c.compression.angle_degrees, 40);
+  EXPECT_EQ(c.stream_bits, 14);
   EXPECT_EQ(c.watermark.params.method, Method::Multiplicative);
   EXPECT_EQ(c.watermark.message_bits, 48);
   EXPECT_EQ(c.max_vertices, 3000);
@@ -71,6 +77,12 @@ TEST_F(ConfigTest, MissingFoldersAndBadCombinations) {
   std::string e = expect_error(R"({"home": "nohome", "drop_dir": "drop", "output_dir": "drop/out"})");
   EXPECT_NE(e.find("home: folder"), std::string::npos) << e;
   EXPECT_NE(e.find("output_dir: must not lie inside drop_dir"), std::string::npos) << e;
+  e = expect_error("{" + base + R"(, "watermark": {"max_vertices": 500}, "compression": {"max_vertices": 800, "levels": 9,
+      "stream_bits": 8, "tolerance": 0, "shape": 1}})");
+  for (const char* s : {"compression.max_vertices: must be at most watermark.max_vertices (500)",
+                        "compression.levels: must be in", "compression.stream_bits: must be in",
+                        "compression.tolerance: must be in", "compression.shape: unknown key"})
+    EXPECT_NE(e.find(s), std::string::npos) << s << "\n" << e;
   e = expect_error("{" + base + R"(, "lease_seconds": 10, "heartbeat_seconds": 6})");
   EXPECT_NE(e.find("heartbeat_seconds: must be at most half"), std::string::npos) << e;
   // Tools that only read settings do not need the folders.
