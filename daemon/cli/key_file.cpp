@@ -1,6 +1,7 @@
 #include "cli/key_file.h"
 
 #include <sodium.h>
+#include <sys/stat.h>
 
 #include <cctype>
 #include <cstring>
@@ -28,6 +29,11 @@ Key read_key_file(const std::string& path) {
   }
   sodium_memzero(text.data(), text.size());
   return key;
+}
+
+bool key_file_exposed(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 && (st.st_mode & 077) != 0;
 }
 
 std::string key_fingerprint(const Key& key) {

@@ -12,6 +12,9 @@ namespace mm::cli {
 // whitespace allowed).
 Key read_key_file(const std::string& path);
 
+// True when group or others may read or write the file (keys belong in mode 0600 files).
+bool key_file_exposed(const std::string& path);
+
 // "mmkey1:" + hex BLAKE2b-256 keyed by the key over a fixed label: a one-way key id (a MAC of a
 // constant), so a record can name the key it was made with and a wrong key file is noticed.
 std::string key_fingerprint(const Key& key);

@@ -73,6 +73,13 @@ bool same_file(const std::string& a, const std::string& b) {
   return std::filesystem::equivalent(a, b, ec);
 }
 
+Key read_key(const std::string& path) {
+  const Key key = read_key_file(path);
+  if (key_file_exposed(path))
+    std::cerr << "meshmark: warning: " << path << " is accessible to group or others; keep keys in mode 0600\n";
+  return key;
+}
+
 // Extraction of a quantised stream copy against the unmarked control, both in the unit box.
 Extraction check_stream(const Control& c, const std::vector<std::uint8_t>& bytes, const std::string& out,
                         const std::vector<bool>& message, const Key& key, const Nonce& nonce,
@@ -135,7 +142,7 @@ void add_embed_command(CLI::App& app) {
     const std::vector<bool> message = message_to_bits(a->message);
 
     Control ctl = load_control(a->original);
-    const Key key = read_key_file(a->key);
+    const Key key = read_key(a->key);
     const int usable = usable_coefficients(ctl.basis);
     if (usable < kMinRepeat * static_cast<int>(message.size()))
       throw InputError(a->original, "its control polyhedron has " + std::to_string(usable) +
@@ -294,7 +301,7 @@ void add_extract_command(CLI::App& app) {
     if (ctl.file.sha256 != rec.original_sha256)
       throw CommandFailed(1, a->record + ": was made for another original (sha256 " + rec.original_sha256.substr(0, 16) +
                                  "..., " + a->original + " has " + ctl.file.sha256.substr(0, 16) + "...)");
-    const Key key = read_key_file(a->key);
+    const Key key = read_key(a->key);
     if (key_fingerprint(key) != rec.key_fingerprint)
       throw CommandFailed(1, a->key + ": is not the key " + a->record + " was made with (key fingerprints differ)");
     if (basis_fingerprint(ctl.basis) != rec.basis_fingerprint)

@@ -113,6 +113,9 @@ TEST(KeyFile, ReadsKeygenFormatAndRejectsOthers) {
   const Key k = read_key_file(path);
   for (auto b : k) EXPECT_EQ(b, 0xcc);
   EXPECT_EQ(key_file_text(k), std::string(64, 'c') + "\n");
+  EXPECT_FALSE(key_file_exposed(path));
+  std::filesystem::permissions(path, std::filesystem::perms::group_read, std::filesystem::perm_options::add);
+  EXPECT_TRUE(key_file_exposed(path));
   EXPECT_EQ(key_fingerprint(k).substr(0, 7), "mmkey1:");
   EXPECT_EQ(key_fingerprint(k).find(std::string(64, 'c')), std::string::npos);
   for (const std::string& bad : {std::string(63, 'c'), std::string(66, 'c'), std::string(62, 'c') + "zz", std::string()}) {
