@@ -283,6 +283,13 @@ TEST(CliMark, RecordMismatchesAreRefused) {
   r = meshmark(s, {"extract", o.part, a, o.alice, "--record", a + ".mmrec.json"});
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("another original"), std::string::npos) << r.err;
+  // A basis that differs from the recorded one (another build) would make the result unreliable.
+  json rec = json::parse(slurp(a + ".mmrec.json"));
+  rec["control"]["basis_fingerprint"] = std::string(64, '0');
+  std::ofstream(s / "tampered.json") << rec.dump(2);
+  r = meshmark(s, {"extract", o.original, a, o.alice, "--record", s / "tampered.json"});
+  EXPECT_EQ(r.code, 3);
+  EXPECT_NE(r.err.find("spectral basis differs"), std::string::npos) << r.err;
 }
 
 TEST(CliMark, BadInputsExit2NamingTheFileAndWriteNothing) {
