@@ -123,6 +123,9 @@ void add_embed_command(CLI::App& app) {
                 ".mmc OUT: quantisation bits (default: the fewest from 12, or the original stream's, "
                 "that keep the whole message and correlation >= 0.95)")
       ->check(CLI::Range(kMinQuantBits, kMaxQuantBits));
+  c->footer(
+      "Deterministic: the per-copy nonce is derived from the key, the original's hash, the parameters and "
+      "the message, so the same command gives the same bytes. Exit 1: refused; 2: bad file; see docs/cli.md.");
   c->callback([a] {
     const bool stream_out = is_stream_path(a->out);
     if (!stream_out && !is_mesh_path(a->out))
@@ -294,6 +297,10 @@ void add_extract_command(CLI::App& app) {
   c->add_option("--max-level", a->max_level, "highest subdivision level recognised when resynchronising")
       ->capture_default_str()->check(CLI::Range(0, 6));
   c->add_flag("--json", a->json, "print the result as JSON");
+  c->footer(
+      "Verdict: \"watermark present\" when p < 1e-6 and the decoded message equals the recorded one, "
+      "\"inconclusive\" when only one holds, else \"no watermark found\"; exit 0 whatever the verdict. "
+      "Exit 1: record for another original or key; 2: bad file; 3: basis differs from the record. See docs/cli.md.");
   c->callback([a] {
     const auto rec_bytes = read_file_bytes(a->record);
     const CopyRecord rec = record_from_json(std::string(rec_bytes.begin(), rec_bytes.end()), a->record);
