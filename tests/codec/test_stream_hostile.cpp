@@ -86,9 +86,13 @@ TEST(StreamHostile, BadMagicVersionAndTrailingBytes) {
   t[0] = 'X';
   EXPECT_REJECTED_WITH(t, "bad magic");
   t = s;
-  t[4] = 2;
+  t[4] = 3;
   reseal(t);
-  EXPECT_REJECTED_WITH(t, "unsupported format version 2");
+  EXPECT_REJECTED_WITH(t, "unsupported format version 3");
+  t = s;
+  t[4] = 0;
+  reseal(t);
+  EXPECT_REJECTED_WITH(t, "unsupported format version 0");
   t = s;
   t.insert(t.end() - 4, 0);
   reseal(t);
@@ -106,9 +110,6 @@ TEST(StreamHostile, HeaderFieldsOutOfRange) {
   cd::Header h = parts.header;
   h.flags |= 0x80;
   EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "unknown flags");
-  h = parts.header;
-  h.flags = (h.flags & cd::kFlagZstd) | cd::kPredictionMask;
-  EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "unknown coordinate prediction 3");
   h = parts.header;
   h.bits = 31;
   EXPECT_REJECTED_WITH(cd::join(h, parts.raw, 19), "quantisation bits 31");
@@ -154,6 +155,7 @@ TEST(StreamHostile, PayloadContentsBehindAValidChecksum) {
   // Hand-built payloads: face streams (sizes, symbols, ranks, plain indices), crease bits,
   // coordinates (plain, 12 bits), so each field can be broken on its own.
   cd::Header h;
+  h.version = 1;  // plain face indices (version 2 cases below)
   h.flags = 0;  // plain coordinates
   h.bits = 12;
   h.vertices = 4;
@@ -233,10 +235,40 @@ TEST(StreamHostile, PayloadContentsBehindAValidChecksum) {
     // Neighbour prediction: vertex 1's only lower neighbour is vertex 0 (at 0), same failure.
     hd.flags = 2 << cd::kPredictionShift;
     EXPECT_REJECTED_WITH(cd::join(hd, below, 0), "outside the 12-bit grid");
+    cd::Header h3 = hd;  // parallelogram prediction (3) arrived with version 2
+    h3.flags = 3 << cd::kPredictionShift;
+    EXPECT_REJECTED_WITH(cd::join(h3, below, 0), "unknown coordinate prediction 3 for format version 1");
     const auto d = mm::decode(cd::join(hd, payload({4}, {}, {0, 1, 2, 3}, 0, 4, {0, 2}), 0), "pred");
     EXPECT_EQ(d.grid(1, 0), 1);  // zigzag 2 = +1
     EXPECT_EQ(d.grid(2, 0), 1);  // lower neighbour 1 predicts 1, residual 0
     EXPECT_EQ(d.grid(3, 0), 1);  // lower neighbours 0 and 2: mean 0.5 rounds half up to 1
+  }
+  {
+    // Version 2: plain indices are zigzag(index - vertices seen so far), and parallelogram
+    // prediction. Triangles (0, 1, 2) then (1, 0, 3) across gate (0, 1): vertex 3 is predicted
+    // by 0 + 1 - 2.
+    cd::Header v2 = h;
+    v2.version = 2;
+    v2.faces = 2;
+    v2.flags = 3 << cd::kPredictionShift;
+    // Indices 0, 1, 2 (all "next new": zigzag 0), then vertex 3 escaped as next new too.
+    const auto tri = payload({3, 1}, {0}, {0, 0, 0, 0}, 0, 4, {0, 20, 1, 2});
+    const auto d = mm::decode(cd::join(v2, tri, 0), "v2");
+    EXPECT_EQ(d.version, 2);
+    EXPECT_EQ(d.mesh.faces, (std::vector<std::vector<int>>{{0, 1, 2}, {1, 0, 3}}));
+    EXPECT_EQ(d.grid(0, 0), 0);   // first vertex: previous-vertex rule, 0
+    EXPECT_EQ(d.grid(1, 0), 10);  // lower neighbour 0 (at 0) predicts 0, zigzag 20 = +10
+    EXPECT_EQ(d.grid(2, 0), 4);   // lower neighbours 0, 1: mean 5, zigzag 1 = -1
+    EXPECT_EQ(d.grid(3, 0), 7);   // parallelogram 0 + 10 - 4 = 6, zigzag 2 = +1
+    // Relative index out of range: zigzag 7 = -4 from 0.
+    EXPECT_REJECTED_WITH(cd::join(v2, payload({3, 1}, {0}, {7, 0, 0, 0}, 0, 4), 0),
+                         "vertex index -4 outside [0, 3]");
+    // The same plain indices under version 1 mean vertex 0 three times.
+    cd::Header v1 = v2;
+    v1.version = 1;
+    v1.flags = 2 << cd::kPredictionShift;
+    EXPECT_REJECTED_WITH(cd::join(v1, payload({3, 1}, {0}, {0, 0, 0, 0}, 0, 4), 0),
+                         "repeats a vertex");
   }
   {
     cd::Header hc = h;

@@ -42,7 +42,8 @@ void push_gates(std::deque<Gate>& gates, const std::vector<int>& f, std::size_t 
 }  // namespace
 
 ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
-                                 std::vector<std::vector<int>>* traversal_order) {
+                                 std::vector<std::vector<int>>* traversal_order, int version) {
+  const bool relative_indices = version >= 2;
   std::vector<std::vector<int>> canon = faces;
   for (auto& f : canon) std::rotate(f.begin(), std::min_element(f.begin(), f.end()), f.end());
   std::sort(canon.begin(), canon.end());
@@ -58,14 +59,43 @@ ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int
   std::size_t done = 0, next_start = 0;
   std::deque<Gate> gates;
   if (traversal_order) traversal_order->clear();
-  auto code_vertex = [&](int v, int anchor) {
+  std::vector<char> seen(static_cast<std::size_t>(num_vertices), 0);
+  std::int64_t fresh = 0;
+  auto plain = [&](int v) {
+    if (relative_indices) {
+      vertices.varint(zigzag(static_cast<std::int64_t>(v) - fresh));
+      if (!seen[v]) seen[v] = 1, ++fresh;
+    } else {
+      vertices.varint(static_cast<std::uint64_t>(v));
+    }
+  };
+  auto note = [&](int v) {
+    if (relative_indices && !seen[v]) seen[v] = 1, ++fresh;
+  };
+  auto code_vertex = [&](int v, int anchor, int other) {
     const auto& list = nb.of(anchor);
+    if (relative_indices) {
+      // Most recent neighbour first: a face closing a fan mostly meets the last one known.
+      const auto& list2 = nb.of(other);
+      const auto it = std::find(list.rbegin(), list.rend(), v);
+      const auto it2 = std::find(list2.rbegin(), list2.rend(), v);
+      if (it != list.rend()) {
+        ranks.varint(static_cast<std::uint64_t>(it - list.rbegin()) + 1);
+      } else if (it2 != list2.rend()) {
+        ranks.varint(list.size() + static_cast<std::uint64_t>(it2 - list2.rbegin()) + 1);
+      } else {
+        ranks.varint(0);
+        plain(v);
+      }
+      return;
+    }
     const auto it = std::find(list.begin(), list.end(), v);
     if (it != list.end()) {
       ranks.varint(static_cast<std::uint64_t>(it - list.begin()) + 1);
+      note(v);
     } else {
       ranks.varint(0);
-      vertices.varint(static_cast<std::uint64_t>(v));
+      plain(v);
     }
   };
   while (done < canon.size()) {
@@ -75,7 +105,7 @@ ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int
       visited[next_start] = 1;
       ++done;
       symbols.u8(static_cast<std::uint8_t>(f.size()));
-      for (int v : f) vertices.varint(static_cast<std::uint64_t>(v));
+      for (int v : f) plain(v);
       nb.add_face(f);
       push_gates(gates, f, 0);
       if (traversal_order) traversal_order->push_back(f);
@@ -100,8 +130,8 @@ ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int
     ++done;
     std::rotate(f.begin(), std::find(f.begin(), f.end(), b), f.end());  // f = (b, a, x[, y])
     symbols.u8(static_cast<std::uint8_t>(f.size() - 2));
-    code_vertex(f[2], a);
-    if (f.size() == 4) code_vertex(f[3], b);
+    code_vertex(f[2], a, b);
+    if (f.size() == 4) code_vertex(f[3], b, a);
     nb.add_face(f);
     push_gates(gates, f, 1);
     if (traversal_order) traversal_order->push_back(f);
@@ -113,23 +143,45 @@ std::vector<std::vector<int>> decode_faces(const std::uint8_t* symbols_data, std
                                            const std::uint8_t* ranks_data, std::size_t ranks_size,
                                            const std::uint8_t* vertices_data, std::size_t vertices_size,
                                            std::uint32_t num_faces, int num_vertices,
-                                           const std::string& source) {
+                                           int version, const std::string& source) {
+  const bool relative_indices = version >= 2;
   Reader symbols(symbols_data, symbols_size, source, "face symbols");
   Reader ranks(ranks_data, ranks_size, source, "face vertex ranks");
   Reader vertices(vertices_data, vertices_size, source, "face vertex indices");
   const std::uint64_t max_index = num_vertices > 0 ? static_cast<std::uint64_t>(num_vertices) - 1 : 0;
+  std::vector<char> seen(static_cast<std::size_t>(num_vertices), 0);
+  std::int64_t fresh = 0;
+  auto note = [&](int v) {
+    if (relative_indices && !seen[v]) seen[v] = 1, ++fresh;
+  };
   auto plain = [&]() {
     if (num_vertices == 0) vertices.fail("a face refers to a vertex but the mesh has none");
-    return static_cast<int>(vertices.varint("vertex index", max_index));
+    if (!relative_indices) return static_cast<int>(vertices.varint("vertex index", max_index));
+    const std::int64_t v = fresh + unzigzag(vertices.varint("vertex index offset", 2 * max_index + 1));
+    if (v < 0 || v > static_cast<std::int64_t>(max_index))
+      vertices.fail("vertex index " + std::to_string(v) + " outside [0, " + std::to_string(max_index) + "]");
+    note(static_cast<int>(v));
+    return static_cast<int>(v);
   };
   Neighbours nb(num_vertices);
-  auto coded_vertex = [&](int anchor) {
+  auto coded_vertex = [&](int anchor, int other) {
     const std::uint64_t r = ranks.varint("neighbour rank", 0xFFFFFFFFull);
     if (r == 0) return plain();
     const auto& list = nb.of(anchor);
+    if (relative_indices) {
+      const auto& list2 = nb.of(other);
+      if (r > list.size() + list2.size())
+        ranks.fail("neighbour rank " + std::to_string(r) + " but vertices " + std::to_string(anchor) +
+                   " and " + std::to_string(other) + " have " +
+                   std::to_string(list.size() + list2.size()) + " known neighbours");
+      const int v = r <= list.size() ? list[list.size() - r] : list2[list.size() + list2.size() - r];
+      note(v);
+      return v;
+    }
     if (r > list.size())
       ranks.fail("neighbour rank " + std::to_string(r) + " but vertex " + std::to_string(anchor) +
                  " has " + std::to_string(list.size()) + " known neighbours");
+    note(list[r - 1]);
     return list[r - 1];
   };
   auto check_distinct = [&](const std::vector<int>& f, std::size_t index) {
@@ -160,8 +212,8 @@ std::vector<std::vector<int>> decode_faces(const std::uint8_t* symbols_data, std
     if (s == 0) continue;
     if (s > 2) symbols.fail("gate symbol " + std::to_string(s) + " is not 0, 1 or 2");
     std::vector<int> f = {b, a};
-    f.push_back(coded_vertex(a));
-    if (s == 2) f.push_back(coded_vertex(b));
+    f.push_back(coded_vertex(a, b));
+    if (s == 2) f.push_back(coded_vertex(b, a));
     check_distinct(f, faces.size());
     nb.add_face(f);
     push_gates(gates, f, 1);

@@ -13,6 +13,14 @@
 //   y relative to b: rank k >= 1 picks the k-th neighbour of that vertex in the order edges
 //   became known, 0 escapes to a plain index. The new face's edges after (b, a) become gates.
 //
+// Format version 2 changes two things. Ranks count from the most recent neighbour of x's
+// anchor (r = 1 is the last one known), and ranks beyond the anchor's list continue into the
+// other gate vertex's list (most recent first), so a face closing a fan on either side costs a
+// small rank instead of an escape. Plain indices: version 1 stores the index itself; version 2 stores
+// zigzag(index - fresh), where fresh counts the distinct vertices referenced so far, so a mesh
+// numbered in order of first appearance in this traversal (mm::traversal_vertex_order) stores
+// only zeros there.
+//
 // Decoded faces come out in traversal order with that rotation; encoding them again gives the
 // same bytes. Vertices that no face uses are fine (they just never appear here).
 #pragma once
@@ -31,7 +39,7 @@ struct ConnectivityStreams {
 // Faces must be triangles or quads with distinct in-range vertices (checked by the caller).
 // Returns the streams and, in `traversal_order`, the faces as the decoder will produce them.
 ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
-                                 std::vector<std::vector<int>>* traversal_order);
+                                 std::vector<std::vector<int>>* traversal_order, int version);
 
 // Decodes exactly `num_faces` faces; every stream must be consumed exactly. Throws
 // InputError(source, reason) for any inconsistency.
@@ -39,6 +47,6 @@ std::vector<std::vector<int>> decode_faces(const std::uint8_t* symbols, std::siz
                                            const std::uint8_t* ranks, std::size_t ranks_size,
                                            const std::uint8_t* vertices, std::size_t vertices_size,
                                            std::uint32_t num_faces, int num_vertices,
-                                           const std::string& source);
+                                           int version, const std::string& source);
 
 }  // namespace mm::codec_detail

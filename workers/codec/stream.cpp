@@ -107,14 +107,14 @@ void validate_for_encoding(const Mesh& mesh, const CodecParams& params) {
 }
 
 // The payload, with coordinates coded against the given prediction.
-std::vector<std::uint8_t> build_payload(const Mesh& mesh, const GridPoints& grid,
+std::vector<std::uint8_t> build_payload(const codec_detail::ConnectivityStreams& streams,
+                                        const GridPoints& grid,
                                         const std::vector<bool>& crease_bits,
                                         const std::vector<int>& corners,
                                         const std::map<std::string, std::string>& metadata,
                                         codec_detail::Prediction mode,
-                                        const codec_detail::LowerNeighbours& lower) {
+                                        const codec_detail::PredictionContext& ctx) {
   Writer w;
-  const auto streams = codec_detail::encode_faces(mesh.faces, mesh.num_vertices(), nullptr);
   for (const auto* part : {&streams.symbols, &streams.ranks, &streams.vertices}) w.varint(part->size());
   for (const auto* part : {&streams.symbols, &streams.ranks, &streams.vertices})
     w.raw(part->data(), part->size());
@@ -129,7 +129,7 @@ std::vector<std::uint8_t> build_payload(const Mesh& mesh, const GridPoints& grid
   std::vector<std::uint64_t> values[3];
   for (int a = 0; a < 3; ++a)
     for (Eigen::Index i = 0; i < grid.rows(); ++i) {
-      const std::int64_t r = grid(i, a) - codec_detail::predict(grid, static_cast<int>(i), a, mode, lower);
+      const std::int64_t r = grid(i, a) - codec_detail::predict(grid, static_cast<int>(i), a, mode, ctx);
       values[a].push_back(mode == codec_detail::Prediction::plain ? static_cast<std::uint64_t>(r) : zigzag(r));
     }
   codec_detail::BitWriter bits;
@@ -208,9 +208,10 @@ Parts split(const std::uint8_t* data, std::size_t size, const std::string& sourc
     throw InputError(source, "truncated: " + std::to_string(size) + " bytes, a stream has at least " +
                                  std::to_string(min_size));
   if (size > kMaxStreamBytes) throw InputError(source, "stream larger than the 256 MiB limit");
-  if (data[4] != kVersion)
+  if (data[4] < kOldestVersion || data[4] > kVersion)
     throw InputError(source, "unsupported format version " + std::to_string(data[4]) +
-                                 " (this build reads version " + std::to_string(kVersion) + ")");
+                                 " (this build reads versions " + std::to_string(kOldestVersion) +
+                                 " to " + std::to_string(kVersion) + ")");
   const std::size_t body = size - kChecksumBytes;
   std::uint32_t stored = 0;
   for (int i = 0; i < 4; ++i) stored |= static_cast<std::uint32_t>(data[body + i]) << (8 * i);
@@ -311,13 +312,18 @@ std::vector<std::uint8_t> encode(const Mesh& mesh, const CodecParams& params) {
   h.metadata_entries = static_cast<std::uint32_t>(params.metadata.size());
 
   // Smallest of the coordinate predictions, compressed or stored. Ties go to the first tried.
-  const auto lower = codec_detail::lower_neighbours(edges, mesh.num_vertices());
+  std::vector<std::vector<int>> traversal;
+  const auto streams = codec_detail::encode_faces(mesh.faces, mesh.num_vertices(), &traversal, codec_detail::kVersion);
+  codec_detail::PredictionContext ctx;
+  ctx.lower = codec_detail::lower_neighbours(edges, mesh.num_vertices());
+  ctx.parallelogram = codec_detail::parallelograms(traversal, mesh.num_vertices());
+  ctx.max_value = q.max_value();
   std::vector<std::uint8_t> best;
-  for (auto mode : {codec_detail::Prediction::neighbours, codec_detail::Prediction::previous,
-                    codec_detail::Prediction::plain}) {
+  for (auto mode : {codec_detail::Prediction::parallelogram, codec_detail::Prediction::neighbours,
+                    codec_detail::Prediction::previous, codec_detail::Prediction::plain}) {
     Header hd = h;
     hd.flags = static_cast<std::uint8_t>(static_cast<int>(mode) << codec_detail::kPredictionShift);
-    const auto raw = build_payload(mesh, grid, crease_bits, corners, params.metadata, mode, lower);
+    const auto raw = build_payload(streams, grid, crease_bits, corners, params.metadata, mode, ctx);
     for (int level : {params.zstd_level, 0}) {
       auto s = codec_detail::join(hd, raw, level);
       // Conservative payload size: header varints take at most 60 bytes, the CRC 4.
@@ -345,7 +351,7 @@ DecodedStream decode(const std::uint8_t* data, std::size_t size, const std::stri
   const std::uint8_t* starts[3];
   for (int k = 0; k < 3; ++k) starts[k] = in.bytes(sizes[k], names[k]);
   mesh.faces = codec_detail::decode_faces(starts[0], sizes[0], starts[1], sizes[1], starts[2],
-                                          sizes[2], h.faces, n, source);
+                                          sizes[2], h.faces, n, h.version, source);
 
   const auto edges = unique_edges(mesh);
   const std::vector<bool> crease_bits = read_bitset(in, edges.size(), "crease flags");
@@ -367,9 +373,14 @@ DecodedStream decode(const std::uint8_t* data, std::size_t size, const std::stri
   q.offset = h.offset;
   q.step = h.step;
   const int mode_bits = (h.flags & codec_detail::kPredictionMask) >> codec_detail::kPredictionShift;
-  if (mode_bits > 2) in.fail("unknown coordinate prediction " + std::to_string(mode_bits));
+  if (mode_bits > (h.version >= 2 ? 3 : 2))
+    in.fail("unknown coordinate prediction " + std::to_string(mode_bits) + " for format version " +
+            std::to_string(h.version));
   const auto mode = static_cast<codec_detail::Prediction>(mode_bits);
-  const auto lower = codec_detail::lower_neighbours(edges, n);
+  codec_detail::PredictionContext ctx;
+  ctx.lower = codec_detail::lower_neighbours(edges, n);
+  if (mode == codec_detail::Prediction::parallelogram) ctx.parallelogram = codec_detail::parallelograms(mesh.faces, n);
+  ctx.max_value = q.max_value();
   const bool plain = mode == codec_detail::Prediction::plain;
   int rice_k[3];
   for (int& k : rice_k) {
@@ -387,7 +398,7 @@ DecodedStream decode(const std::uint8_t* data, std::size_t size, const std::stri
       if (u > 2ull * q.max_value())
         bit_errors.fail("vertex " + std::to_string(i) + " residual " + std::to_string(u) + " exceeds the grid");
       const std::int64_t v = plain ? static_cast<std::int64_t>(u)
-                                   : codec_detail::predict(out.grid, i, a, mode, lower) + unzigzag(u);
+                                   : codec_detail::predict(out.grid, i, a, mode, ctx) + unzigzag(u);
       if (v < 0 || v > q.max_value())
         bit_errors.fail("vertex " + std::to_string(i) + " coordinate outside the " +
                         std::to_string(q.bits) + "-bit grid");
@@ -463,5 +474,23 @@ std::vector<std::uint8_t> read_stream_file(const std::string& path) {
 }
 
 DecodedStream decode_file(const std::string& path) { return decode(read_stream_file(path), path); }
+
+std::vector<int> traversal_vertex_order(const Mesh& mesh) {
+  const int n = mesh.num_vertices();
+  for (const auto& f : mesh.faces)
+    for (int v : f)
+      if (v < 0 || v >= n) throw std::invalid_argument("traversal_vertex_order: face index out of range");
+  std::vector<std::vector<int>> traversal;
+  codec_detail::encode_faces(mesh.faces, n, &traversal, codec_detail::kVersion);
+  std::vector<int> order;
+  order.reserve(static_cast<std::size_t>(n));
+  std::vector<char> taken(static_cast<std::size_t>(n), 0);
+  for (const auto& f : traversal)
+    for (int v : f)
+      if (!taken[v]) taken[v] = 1, order.push_back(v);
+  for (int v = 0; v < n; ++v)
+    if (!taken[v]) order.push_back(v);
+  return order;
+}
 
 }  // namespace mm

@@ -59,4 +59,10 @@ void write_stream_file(const std::string& path, const std::vector<std::uint8_t>&
 std::vector<std::uint8_t> read_stream_file(const std::string& path);
 DecodedStream decode_file(const std::string& path);
 
+// A vertex numbering the stream codes cheaply: order[k] = the vertex that should become vertex
+// k, in order of first appearance in the connectivity coder's face traversal (unused vertices
+// last). Producers free to choose their vertex order (compress) renumber with it; the codec
+// itself never reorders. Faces must be valid for encode().
+std::vector<int> traversal_vertex_order(const Mesh& mesh);
+
 }  // namespace mm

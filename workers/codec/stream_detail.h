@@ -10,9 +10,13 @@
 namespace mm::codec_detail {
 
 constexpr std::uint8_t kMagic[4] = {'M', 'M', 'C', 'S'};
-constexpr std::uint8_t kVersion = 1;
+// Version 2 (written): plain face indices relative to the count of vertices seen so far,
+// parallelogram prediction. Version 1 (still read): plain indices, predictions 0-2.
+constexpr std::uint8_t kVersion = 2;
+constexpr std::uint8_t kOldestVersion = 1;
 constexpr std::uint8_t kFlagZstd = 1;         // payload is one zstd frame (else stored as is)
-// Bits 1-2: coordinate prediction (codec/prediction.h: 0 plain, 1 previous vertex, 2 neighbours).
+// Bits 1-2: coordinate prediction (codec/prediction.h: 0 plain, 1 previous vertex, 2 neighbours,
+// 3 parallelogram from version 2 on).
 constexpr int kPredictionShift = 1;
 constexpr std::uint8_t kPredictionMask = 6;
 constexpr std::uint8_t kKnownFlags = kFlagZstd | kPredictionMask;

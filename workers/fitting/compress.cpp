@@ -4,6 +4,7 @@
 #include <cmath>
 #include <string>
 
+#include "codec/stream.h"
 #include "fitting/control_polyhedron.h"
 #include "fitting/segmentation.h"
 #include "fitting/sharp_features.h"
@@ -23,6 +24,28 @@ void validate(const Mesh& mesh, const CompressOptions& o, const std::string& sou
   if (!(o.tolerance > 0) || !(o.max_vertices >= 4) || o.levels < 1 || o.levels > 5 ||
       !(o.angle_degrees > 0 && o.angle_degrees < 180) || o.max_rounds < 1)
     throw std::invalid_argument("compress: options out of range");
+}
+
+// Vertices renumbered in order of first appearance in the stream's face traversal: the codec
+// keeps vertex order (the watermark lives in it), so the order chosen here is what it codes,
+// and in this order new vertices cost no index and have parallelogram predictions.
+Mesh renumbered_for_stream(const Mesh& m) {
+  const std::vector<int> order = traversal_vertex_order(m);
+  std::vector<int> new_index(order.size());
+  Mesh out;
+  out.points.resize(m.points.rows(), 3);
+  for (size_t k = 0; k < order.size(); ++k) {
+    new_index[order[k]] = static_cast<int>(k);
+    out.points.row(static_cast<Eigen::Index>(k)) = m.points.row(order[k]);
+  }
+  out.faces = m.faces;
+  for (auto& f : out.faces)
+    for (int& v : f) v = new_index[v];
+  for (auto [a, b] : m.creases) out.creases.emplace_back(std::min(new_index[a], new_index[b]), std::max(new_index[a], new_index[b]));
+  std::sort(out.creases.begin(), out.creases.end());
+  for (int c : m.corners) out.corners.push_back(new_index[c]);
+  std::sort(out.corners.begin(), out.corners.end());
+  return out;
 }
 
 }  // namespace
@@ -86,7 +109,7 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
     co.target_vertices = std::min(o.max_vertices, static_cast<int>(std::ceil(co.target_vertices * grow)));
   }
 
-  out.control = best.control;
+  out.control = renumbered_for_stream(best.control);
   out.stats = best.stats;
   // Back to the part's units.
   undo(out.normalization, out.control.points);
