@@ -4,11 +4,14 @@
 #include <numeric>
 
 #include "common/shared_meshes.h"
+#include "codec/stream.h"
 #include "fitting/compress.h"
 #include "fitting/control_polyhedron.h"
 #include "fitting/fit_control_points.h"
 #include "meshio/normalize.h"
 #include "meshio/read_mesh.h"
+#include "quality/surface_distance.h"
+#include "subdivision/decompress.h"
 
 namespace {
 
@@ -45,15 +48,22 @@ TEST(Fit, FandiskFitMovesTheSurfaceOntoThePart) {
   auto r = mm::fit_control_points(c.mesh, m, f);
   EXPECT_LT(r.stats.rms, 0.5 * before.rms);
   EXPECT_LT(r.stats.hausdorff, before.hausdorff);
-  // One fit on the first decimation; the compress loop below is what meets the 0.1 % RMS target.
-  EXPECT_LT(rel(r.stats.rms, r.stats), 0.0015);
+  // One fit on the plain decimation (no refinement rounds) already meets the issue's 0.1 % RMS;
+  // the Hausdorff target needs the compress loop below.
+  EXPECT_LE(rel(r.stats.rms, r.stats), 0.001);
   EXPECT_LT(rel(r.stats.hausdorff, r.stats), 0.01);
+  // The statistics are what measure_fit finds for the fitted control mesh.
+  const auto again = mm::measure_fit(r.control, 3, m);
+  EXPECT_NEAR(again.hausdorff, r.stats.hausdorff, 1e-9);
   // Topology is untouched: only positions move.
   EXPECT_EQ(r.control.faces, c.mesh.faces);
   EXPECT_EQ(r.control.creases, c.mesh.creases);
   EXPECT_EQ(r.control.corners, c.mesh.corners);
 }
 
+// Issue 3's fandisk target: at most 100 control vertices, Hausdorff <= 0.5 % and RMS <= 0.1 % of
+// the diagonal, measured as a receiver sees it: the stream decoded (10-bit quantisation),
+// subdivided at the fitted level, compared with the part by the quality code (dense sampling).
 TEST(Compress, FandiskWithinHundredControlVertices) {
   MM_REQUIRE_SHARED_MESHES();
   auto m = mm::read_mesh(mm::test::shared_mesh("fandisk.off"));
@@ -62,10 +72,15 @@ TEST(Compress, FandiskWithinHundredControlVertices) {
   o.tolerance = 0.005;
   auto r = mm::compress(m, o);
   EXPECT_LE(r.control.num_vertices(), 100);
-  // Issue 3 asks for Hausdorff <= 0.5 % and RMS <= 0.1 % at 100 vertices; we reach about
-  // 0.53 % / 0.10 % (docs/compression.md). This guards what we reach, not the target.
-  EXPECT_LE(rel(r.stats.hausdorff, r.stats), 0.0065);
-  EXPECT_LE(rel(r.stats.rms, r.stats), 0.0012);
+  EXPECT_TRUE(r.tolerance_met) << rel(r.stats.hausdorff, r.stats);
+  EXPECT_EQ(r.tolerance_met, rel(r.stats.hausdorff, r.stats) <= o.tolerance);
+  EXPECT_LE(rel(r.stats.rms, r.stats), 0.001);
+  mm::CodecParams p;
+  p.quant_bits = 10;
+  const auto decoded = mm::decode(mm::encode(r.control, p), "fandisk");
+  const auto d = mm::surface_distance(m, mm::decompress_to_level(decoded.mesh, r.levels));
+  EXPECT_LE(d.hausdorff_relative(), 0.005);
+  EXPECT_LE(d.rms_relative(), 0.001);
   EXPECT_FALSE(r.control.creases.empty());
   EXPECT_FALSE(r.control.corners.empty());
   // Original units: the control mesh sits in the part's bounding box (slightly outside at most).
@@ -73,6 +88,21 @@ TEST(Compress, FandiskWithinHundredControlVertices) {
   double slack = 0.05 * (hi - lo).norm();
   EXPECT_TRUE(((r.control.points.rowwise() - lo).array() >= -slack).all());
   EXPECT_TRUE(((r.control.points.rowwise() - hi).array() <= slack).all());
+}
+
+// compress numbers the control vertices in the stream's traversal order: the codec then stores
+// no index for a new vertex, and the numbering is a permutation of a valid mesh.
+TEST(Compress, ControlVerticesComeInStreamOrder) {
+  MM_REQUIRE_SHARED_MESHES();
+  auto m = mm::read_mesh(mm::test::shared_mesh("abc9.stl"));
+  mm::CompressOptions o;
+  o.max_rounds = 1;
+  auto r = mm::compress(m, o);
+  const auto order = mm::traversal_vertex_order(r.control);
+  for (size_t k = 0; k < order.size(); ++k) EXPECT_EQ(order[k], static_cast<int>(k));
+  const auto decoded = mm::decode(mm::encode(r.control), "abc9");
+  EXPECT_EQ(decoded.mesh.creases, r.control.creases);
+  EXPECT_EQ(decoded.mesh.corners, r.control.corners);
 }
 
 TEST(Compress, MultipleComponentsStaySeparate) {
@@ -187,6 +217,8 @@ TEST(Compress, EverySharedMeshCompressesOrFailsClearly) {
       EXPECT_GT(r.control.num_vertices(), 3);
       EXPECT_TRUE(r.control.points.allFinite());
       EXPECT_LT(rel(r.stats.hausdorff, r.stats), 0.1);
+      // tolerance_met says whether the reported error is within the tolerance, nothing else.
+      EXPECT_EQ(r.tolerance_met, rel(r.stats.hausdorff, r.stats) <= o.tolerance);
       ++compressed;
     } catch (const mm::InputError& e) {
       EXPECT_EQ(e.source(), path);

@@ -17,7 +17,7 @@ struct FitOptions {
   int iterations = 6;         // correspondence / solve rounds
   int area_samples = 3000;    // random target surface samples added to the target vertices
   int max_vertex_samples = 5000;  // target vertices used per iteration (all for the final error)
-  double crease_weight = 4.0; // weight of crease correspondences relative to surface ones
+  double crease_weight = 8.0; // weight of crease correspondences relative to surface ones
   double smoothness = 1e-4;   // umbrella-Laplacian regularisation (relative to the data term)
   std::uint64_t seed = 1;     // sampling is deterministic for a given seed
 };
