@@ -22,7 +22,39 @@ struct Traits : OpenMesh::DefaultTraits {
   EdgeAttributes(OpenMesh::Attributes::Status);
   FaceAttributes(OpenMesh::Attributes::Status | OpenMesh::Attributes::Normal);
 };
-using OMesh = OpenMesh::TriMesh_ArrayKernelT<Traits>;
+// OpenMesh 9's TriConnectivity::is_collapse_ok allocates and frees a temporary per-vertex
+// property on every call (O(n) each), which made it the decimation's main cost. Same tests
+// here with a local one-ring list; the Decimater calls this one (it names MeshT's member).
+struct OMesh : OpenMesh::TriMesh_ArrayKernelT<Traits> {
+  bool is_collapse_ok(HalfedgeHandle v0v1) {
+    if (status(edge_handle(v0v1)).deleted()) return false;
+    const HalfedgeHandle v1v0 = opposite_halfedge_handle(v0v1);
+    const VertexHandle v0 = to_vertex_handle(v1v0), v1 = to_vertex_handle(v0v1);
+    if (status(v0).deleted() || status(v1).deleted()) return false;
+    const bool t01 = !is_boundary(v0v1) && valence(face_handle(v0v1)) == 3;
+    const bool t10 = !is_boundary(v1v0) && valence(face_handle(v1v0)) == 3;
+    const VertexHandle n01 = to_vertex_handle(next_halfedge_handle(v0v1));
+    const VertexHandle n10 = to_vertex_handle(next_halfedge_handle(v1v0));
+    // The edges v1-vl and vl-v0 must not both be boundary edges.
+    for (auto [tri, h] : {std::make_pair(t01, v0v1), std::make_pair(t10, v1v0)})
+      if (tri) {
+        const HalfedgeHandle h1 = next_halfedge_handle(h), h2 = next_halfedge_handle(h1);
+        if (is_boundary(opposite_halfedge_handle(h1)) && is_boundary(opposite_halfedge_handle(h2))) return false;
+      }
+    // The one-rings of v0 and v1 may share only the two opposite vertices.
+    ring_.clear();
+    for (auto w : vv_range(v1)) ring_.push_back(w);
+    for (auto w : vv_range(v0))
+      if (std::find(ring_.begin(), ring_.end(), w) != ring_.end() && !(w == n01 && t01) && !(w == n10 && t10))
+        return false;
+    // An edge between two boundary vertices must be a boundary edge.
+    if (is_boundary(v0) && is_boundary(v1) && !is_boundary(v0v1) && !is_boundary(v1v0)) return false;
+    return true;
+  }
+
+ private:
+  std::vector<VertexHandle> ring_;
+};
 using OpenMesh::Geometry::Quadricd;
 
 // Quadric error (Garland-Heckbert, area weighted face planes) plus, along sharp edges, planes
