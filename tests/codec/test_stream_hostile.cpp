@@ -244,15 +244,15 @@ TEST(StreamHostile, PayloadContentsBehindAValidChecksum) {
     EXPECT_EQ(d.grid(3, 0), 1);  // lower neighbours 0 and 2: mean 0.5 rounds half up to 1
   }
   {
-    // Version 2: plain indices are zigzag(index - vertices seen so far), and parallelogram
-    // prediction. Triangles (0, 1, 2) then (1, 0, 3) across gate (0, 1): vertex 3 is predicted
-    // by 0 + 1 - 2.
+    // Version 2: plain indices are zigzag(index - vertices seen so far), rank 0 is the next
+    // unseen vertex, and parallelogram prediction. Triangles (0, 1, 2) then (1, 0, 3) across
+    // gate (0, 1): vertex 3 is predicted by 0 + 1 - 2. Gates (1, 2), (2, 0), (0, 3), (3, 1) have
+    // nothing across; (1, 0) would be skipped as already placed.
     cd::Header v2 = h;
     v2.version = 2;
     v2.faces = 2;
     v2.flags = 3 << cd::kPredictionShift;
-    // Indices 0, 1, 2 (all "next new": zigzag 0), then vertex 3 escaped as next new too.
-    const auto tri = payload({3, 1}, {0}, {0, 0, 0, 0}, 0, 4, {0, 20, 1, 2});
+    const auto tri = payload({3, 1}, {0}, {0, 0, 0}, 0, 4, {0, 20, 1, 2});
     const auto d = mm::decode(cd::join(v2, tri, 0), "v2");
     EXPECT_EQ(d.version, 2);
     EXPECT_EQ(d.mesh.faces, (std::vector<std::vector<int>>{{0, 1, 2}, {1, 0, 3}}));
@@ -260,9 +260,21 @@ TEST(StreamHostile, PayloadContentsBehindAValidChecksum) {
     EXPECT_EQ(d.grid(1, 0), 10);  // lower neighbour 0 (at 0) predicts 0, zigzag 20 = +10
     EXPECT_EQ(d.grid(2, 0), 4);   // lower neighbours 0, 1: mean 5, zigzag 1 = -1
     EXPECT_EQ(d.grid(3, 0), 7);   // parallelogram 0 + 10 - 4 = 6, zigzag 2 = +1
+    // The same face through an escape (rank 1) to index zigzag(0) relative to 3 seen.
+    EXPECT_EQ(mm::decode(cd::join(v2, payload({3, 1}, {1}, {0, 0, 0, 0}, 0, 4), 0), "esc").mesh.faces,
+              d.mesh.faces);
+    // Rank 2: vertex 0's most recent known neighbour, 2 (the decoder does not judge geometry).
+    EXPECT_EQ(mm::decode(cd::join(v2, payload({3, 1}, {2}, {0, 0, 0}, 0, 4), 0), "r2").mesh.faces[1],
+              (std::vector<int>{1, 0, 2}));
+    EXPECT_REJECTED_WITH(cd::join(v2, payload({3, 1}, {9}, {0, 0, 0}, 0, 4), 0),
+                         "neighbour rank 9 but vertex 1 has 2 known neighbours");
     // Relative index out of range: zigzag 7 = -4 from 0.
-    EXPECT_REJECTED_WITH(cd::join(v2, payload({3, 1}, {0}, {7, 0, 0, 0}, 0, 4), 0),
+    EXPECT_REJECTED_WITH(cd::join(v2, payload({3, 1}, {0}, {7, 0, 0}, 0, 4), 0),
                          "vertex index -4 outside [0, 3]");
+    // A new vertex when every vertex is already used.
+    cd::Header v3 = v2;
+    v3.vertices = 3;
+    EXPECT_REJECTED_WITH(cd::join(v3, payload({3, 1}, {0}, {0, 0, 0}, 0, 3), 0), "all 3 are used");
     // The same plain indices under version 1 mean vertex 0 three times.
     cd::Header v1 = v2;
     v1.version = 1;

@@ -24,13 +24,21 @@ class Neighbours {
         lists_[u].push_back(v);
         lists_[v].push_back(u);
       }
+      placed_.insert((static_cast<std::uint64_t>(static_cast<std::uint32_t>(u)) << 32) |
+                     static_cast<std::uint32_t>(v));
     }
+  }
+  // Whether a placed face holds the directed edge (u, v).
+  bool placed(int u, int v) const {
+    return placed_.count((static_cast<std::uint64_t>(static_cast<std::uint32_t>(u)) << 32) |
+                         static_cast<std::uint32_t>(v)) > 0;
   }
   const std::vector<int>& of(int v) const { return lists_[v]; }
 
  private:
   std::vector<std::vector<int>> lists_;
   std::unordered_set<std::uint64_t> known_;
+  std::unordered_set<std::uint64_t> placed_;
 };
 
 using Gate = std::pair<int, int>;
@@ -75,16 +83,28 @@ ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int
   auto code_vertex = [&](int v, int anchor, int other) {
     const auto& list = nb.of(anchor);
     if (relative_indices) {
-      // Most recent neighbour first: a face closing a fan mostly meets the last one known.
+      // 0: the next unseen number; 1: escape to the index stream; 2 + 2k: the anchor's k-th
+      // most recent neighbour; 3 + 2k: the other gate vertex's (a face closing a fan on either
+      // side mostly meets the last one known).
+      if (v == fresh && !seen[v]) {
+        ranks.varint(0);
+        note(v);
+        return;
+      }
       const auto& list2 = nb.of(other);
       const auto it = std::find(list.rbegin(), list.rend(), v);
       const auto it2 = std::find(list2.rbegin(), list2.rend(), v);
-      if (it != list.rend()) {
-        ranks.varint(static_cast<std::uint64_t>(it - list.rbegin()) + 1);
-      } else if (it2 != list2.rend()) {
-        ranks.varint(list.size() + static_cast<std::uint64_t>(it2 - list2.rbegin()) + 1);
+      std::uint64_t r = 0;
+      if (it != list.rend()) r = 2 + 2 * static_cast<std::uint64_t>(it - list.rbegin());
+      if (it2 != list2.rend()) {
+        const std::uint64_t r2 = 3 + 2 * static_cast<std::uint64_t>(it2 - list2.rbegin());
+        if (r == 0 || r2 < r) r = r2;
+      }
+      if (r > 0) {
+        ranks.varint(r);
+        note(v);
       } else {
-        ranks.varint(0);
+        ranks.varint(1);
         plain(v);
       }
       return;
@@ -113,6 +133,8 @@ ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int
     }
     const auto [a, b] = gates.front();
     gates.pop_front();
+    // Version 2: a gate whose far side is already held by a placed face costs nothing.
+    if (relative_indices && nb.placed(b, a)) continue;
     std::size_t across = canon.size();
     const auto h = holder.find({b, a});
     if (h != holder.end())
@@ -166,18 +188,26 @@ std::vector<std::vector<int>> decode_faces(const std::uint8_t* symbols_data, std
   Neighbours nb(num_vertices);
   auto coded_vertex = [&](int anchor, int other) {
     const std::uint64_t r = ranks.varint("neighbour rank", 0xFFFFFFFFull);
-    if (r == 0) return plain();
     const auto& list = nb.of(anchor);
     if (relative_indices) {
-      const auto& list2 = nb.of(other);
-      if (r > list.size() + list2.size())
-        ranks.fail("neighbour rank " + std::to_string(r) + " but vertices " + std::to_string(anchor) +
-                   " and " + std::to_string(other) + " have " +
-                   std::to_string(list.size() + list2.size()) + " known neighbours");
-      const int v = r <= list.size() ? list[list.size() - r] : list2[list.size() + list2.size() - r];
+      if (r == 0) {
+        if (fresh >= num_vertices) ranks.fail("a new vertex but all " + std::to_string(num_vertices) + " are used");
+        const int v = static_cast<int>(fresh);
+        note(v);
+        return v;
+      }
+      if (r == 1) return plain();
+      const auto& from = r % 2 == 0 ? list : nb.of(other);
+      const std::uint64_t k = (r - 2) / 2;
+      if (k >= from.size())
+        ranks.fail("neighbour rank " + std::to_string(r) + " but vertex " +
+                   std::to_string(r % 2 == 0 ? anchor : other) + " has " + std::to_string(from.size()) +
+                   " known neighbours");
+      const int v = from[from.size() - 1 - k];
       note(v);
       return v;
     }
+    if (r == 0) return plain();
     if (r > list.size())
       ranks.fail("neighbour rank " + std::to_string(r) + " but vertex " + std::to_string(anchor) +
                  " has " + std::to_string(list.size()) + " known neighbours");
@@ -208,6 +238,7 @@ std::vector<std::vector<int>> decode_faces(const std::uint8_t* symbols_data, std
     }
     const auto [a, b] = gates.front();
     gates.pop_front();
+    if (relative_indices && nb.placed(b, a)) continue;
     const std::uint8_t s = symbols.u8("gate symbol");
     if (s == 0) continue;
     if (s > 2) symbols.fail("gate symbol " + std::to_string(s) + " is not 0, 1 or 2");

@@ -13,13 +13,15 @@
 //   y relative to b: rank k >= 1 picks the k-th neighbour of that vertex in the order edges
 //   became known, 0 escapes to a plain index. The new face's edges after (b, a) become gates.
 //
-// Format version 2 changes two things. Ranks count from the most recent neighbour of x's
-// anchor (r = 1 is the last one known), and ranks beyond the anchor's list continue into the
-// other gate vertex's list (most recent first), so a face closing a fan on either side costs a
-// small rank instead of an escape. Plain indices: version 1 stores the index itself; version 2 stores
-// zigzag(index - fresh), where fresh counts the distinct vertices referenced so far, so a mesh
-// numbered in order of first appearance in this traversal (mm::traversal_vertex_order) stores
-// only zeros there.
+// Format version 2 changes three things. A popped gate (a, b) whose directed edge (b, a) is
+// already held by a placed face has no symbol (in an oriented manifold nothing new lies across
+// it, and both sides know it). A coded vertex's rank r means: 0 the next unseen number
+// (`fresh`, the count of distinct vertices referenced so far); 1 escape to the index stream;
+// 2 + 2k the anchor's k-th most recent neighbour, 3 + 2k the other gate vertex's. And plain
+// indices are zigzag(index - fresh). A mesh numbered in order of first appearance in this
+// traversal (mm::traversal_vertex_order) then codes each new vertex as rank 0 and closes fans
+// with ranks 2 or 3. Version 1: ranks r >= 1 index the anchor's list oldest first, 0 escapes,
+// plain indices are stored as they are.
 //
 // Decoded faces come out in traversal order with that rotation; encoding them again gives the
 // same bytes. Vertices that no face uses are fine (they just never appear here).
