@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <numeric>
 #include <random>
+#include <thread>
 
 #include "common/shared_meshes.h"
 #include "meshio/normalize.h"
@@ -186,4 +187,39 @@ TEST(Resync, UnusableSuspectsAreRejectedByName) {
   Mesh bad = mm::subdivide(ctx.control(), 1);
   bad.faces[0][0] = bad.num_vertices();
   EXPECT_THROW(mm::resynchronize(ctx, bad, o), mm::InputError);
+}
+
+TEST(Resync, OneContextServesSeveralThreads) {
+  MM_REQUIRE_SHARED_MESHES();
+  const auto& ctx = context();
+  const Mesh in_order = mm::subdivide(ctx.control(), 2);
+  const Mesh reordered = shuffled(in_order, 4);
+  const auto expected_a = mm::resynchronize(ctx, in_order);
+  const auto expected_b = mm::resynchronize(ctx, reordered);
+  mm::Resynchronized a, b;
+  std::thread ta([&] { a = mm::resynchronize(ctx, in_order); });
+  std::thread tb([&] { b = mm::resynchronize(ctx, reordered); });
+  ta.join();
+  tb.join();
+  // Deterministic and unaffected by a concurrent query on the same context: bit for bit.
+  EXPECT_EQ(a.points, expected_a.points);
+  EXPECT_EQ(b.points, expected_b.points);
+  EXPECT_EQ(b.to_control_frame.rotation, expected_b.to_control_frame.rotation);
+}
+
+TEST(Resync, UnrelatedShapeFallsToTheSurfaceFit) {
+  MM_REQUIRE_SHARED_MESHES();
+  const auto& ctx = context();
+  const Mesh sphere = mm::read_mesh(mm::test::shared_mesh("sphere_low.off"));
+  mm::ResyncOptions o;
+  o.suspect_samples = 2000;  // enough to see it does not fit, and fast
+  o.alignment_samples = 1000;
+  o.icp.probe_points = 500;
+  const auto r = mm::resynchronize(ctx, sphere, o);
+  std::printf("  sphere: residual %.2e matched %.3f\n", r.residual_rms, r.matched_fraction);
+  EXPECT_EQ(r.method, "surface-fit");
+  EXPECT_EQ(r.points.rows(), ctx.control().num_vertices());
+  EXPECT_TRUE(r.points.allFinite());
+  // Nothing like the part: the fit cannot explain it (a decimated copy of the part leaves 1e-5).
+  EXPECT_GT(r.residual_rms, 1e-4);
 }
