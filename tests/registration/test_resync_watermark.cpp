@@ -148,6 +148,19 @@ TEST(ResyncWatermark, StlRoundTripLosesOrderNotTheMark) {
   EXPECT_NEAR(r.to_control_frame.scale * 120, 1.0, 2e-3);
   EXPECT_GT(x.correlation, 0.9);
   EXPECT_EQ(x.message, f.message);
+
+  // The same with noise (0.05 % of the part) before the export.
+  Mesh noisy = subdivide(f.marked, 2);
+  add_noise(noisy, 0.0005, 3);
+  noisy.points = part_units.apply(noisy.points);
+  write_mesh(noisy, path);
+  const Extraction y = detect(read_mesh(path), &r);
+  report("noisy STL of subdivided 2", r, y);
+  EXPECT_EQ(r.level, 2);
+  EXPECT_TRUE(r.order_recovered);
+  EXPECT_GT(r.matched_fraction, 0.99);
+  EXPECT_GT(y.correlation, 0.2);
+  EXPECT_LT(y.p_value, 1e-20);
 }
 
 TEST(ResyncWatermark, CodecPolyhedronIsDetected) {
