@@ -325,24 +325,20 @@ struct Aligned {
   double matched_fraction = 0;
 };
 
-// Resynchronisation contexts are immutable and shareable; building one (subdivision operators,
-// factorisations, AABB trees) costs more than a detection, so the last few are kept, keyed by
-// the polyhedron's content address (a blob never changes).
+// Building a resynchronisation context (subdivision operators, factorisations, AABB trees) costs
+// more than a detection, so each worker thread keeps its last few, keyed by the polyhedron's
+// content address (a blob never changes). Per thread: no lock on the detection path, and a
+// context is never used by two jobs at once.
 std::shared_ptr<const ResyncContext> resync_context(const std::string& polyhedron_blob,
                                                     const jobs::PreparedAsset& asset) {
-  static std::mutex mu;
-  static std::list<std::pair<std::string, std::shared_ptr<const ResyncContext>>> lru;
-  constexpr std::size_t kKeep = 8;
-  {
-    std::lock_guard<std::mutex> lock(mu);
-    for (auto it = lru.begin(); it != lru.end(); ++it)
-      if (it->first == polyhedron_blob) {
-        lru.splice(lru.begin(), lru, it);
-        return lru.front().second;
-      }
-  }
+  thread_local std::list<std::pair<std::string, std::shared_ptr<const ResyncContext>>> lru;
+  constexpr std::size_t kKeep = 4;
+  for (auto it = lru.begin(); it != lru.end(); ++it)
+    if (it->first == polyhedron_blob) {
+      lru.splice(lru.begin(), lru, it);
+      return lru.front().second;
+    }
   auto ctx = std::make_shared<const ResyncContext>(jobs::make_resync_context(asset));
-  std::lock_guard<std::mutex> lock(mu);
   lru.emplace_front(polyhedron_blob, ctx);
   if (lru.size() > kKeep) lru.pop_back();
   return ctx;
@@ -355,7 +351,7 @@ Aligned align_to(const std::string& polyhedron_blob, const jobs::PreparedAsset& 
     auto ctx = resync_context(polyhedron_blob, asset);
     ResyncOptions o;
     o.source = name;
-    Resynchronized r = resynchronize(*ctx, suspect, o);
+    Resynchronized r = jobs::resynchronize_suspect(*ctx, suspect, o);
     a.points = std::move(r.points);
     a.method = r.method;
     a.level = r.level;

@@ -6,6 +6,7 @@
 
 #include <Eigen/Geometry>
 #include <memory>
+#include <cstdio>
 #include <random>
 
 #include "codec/stream.h"
@@ -77,7 +78,7 @@ struct ProtectDetect : ::testing::Test {
   void SetUp() override { MM_REQUIRE_SHARED_MESHES(); }
 
   Verdict detect(const Mesh& suspect, std::string* method = nullptr, const std::vector<CopyCandidate>* copies = nullptr) {
-    Resynchronized r = resynchronize(*fx->ctx, suspect);
+    Resynchronized r = resynchronize_suspect(*fx->ctx, suspect);
     if (method) *method = r.method;
     return detect_copy(fx->asset, r.points, copies ? *copies : fx->copies, 1e-6);
   }
@@ -135,6 +136,13 @@ TEST_F(ProtectDetect, EveryFormOfACopyIsAttributedToItsCopyOnly) {
   const CopyFiles& f = fx->files[1];
   expect_attributed(with_noise(f.decoded, 5e-4, 1), 1, "decoded + noise 5e-4", "subdivided");
   expect_attributed(with_noise(f.decoded, 1e-3, 2), 1, "decoded + noise 1e-3", "subdivided");
+  // Saved as STL: float coordinates, vertices welded and renumbered (order lost), then noise.
+  std::string stl = testing::TempDir() + "mm-jobs-decoded.stl";
+  write_mesh(f.decoded, stl);
+  Mesh from_stl = read_mesh(stl);
+  std::remove(stl.c_str());
+  expect_attributed(from_stl, 1, "decoded as STL", "subdivided");
+  expect_attributed(with_noise(from_stl, 5e-4, 5), 1, "decoded as STL + noise 5e-4", "subdivided");
   Mesh moved = f.decoded;
   Eigen::Matrix3d rot = Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   moved.points = ((moved.points * rot.transpose()) * 2.5).rowwise() + Eigen::RowVector3d(10, -3, 4);
@@ -143,12 +151,20 @@ TEST_F(ProtectDetect, EveryFormOfACopyIsAttributedToItsCopyOnly) {
   Mesh marked = decode(f.stream, "s").mesh;
   marked.faces = fx->asset.control.faces;
   expect_attributed(subdivide(marked, 4), 1, "polyhedron at level 4", "subdivided");
-  // Known limit: a decoded copy subdivided once more by the leaker has to have its vertex order
-  // recovered by nearest neighbours at level 4, where the mark moves vertices by about their
-  // spacing; attribution is not reliable there (docs/daemon.md), but never goes to another copy.
-  Verdict finer = detect(subdivide(f.decoded, 1));
-  std::cout << "decoded subdivided once more: -log10 p " << finer.best.neg_log10_p << "\n";
-  if (finer.attributed) EXPECT_EQ(finer.best.copy_id, fx->copies[1].copy_id);
+  // Known limit: a decoded copy refined once more in the leaker's own vertex numbering needs its
+  // order recovered at level 4, and without the crease rules (a generic tool on an OFF/STL file)
+  // the surface differs at the creases. Measured p ~1e-12..1e-15 but with a bit or two of the
+  // payload wrong, so not attributed (docs/daemon.md); it never goes to another copy.
+  for (bool creases : {true, false}) {
+    Mesh plain = f.decoded;
+    if (!creases) plain.creases.clear(), plain.corners.clear();
+    Verdict finer = detect(subdivide(plain, 1));
+    std::cout << "decoded subdivided once more " << (creases ? "with" : "without") << " crease rules: -log10 p "
+              << finer.best.neg_log10_p << ", bit errors " << finer.best.bit_error_rate << "\n";
+    if (finer.attributed) EXPECT_EQ(finer.best.copy_id, fx->copies[1].copy_id);
+    for (const auto& s : finer.scores)
+      if (s.copy_id != fx->copies[1].copy_id) EXPECT_GT(s.corrected_p, 1e-6);
+  }
   expect_attributed(with_noise(decode(f.stream, "s").mesh, 5e-4, 3), 1, "polyhedron + noise 5e-4", "polyhedron");
 }
 

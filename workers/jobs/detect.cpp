@@ -2,7 +2,11 @@
 
 #include <algorithm>
 
+#include <Eigen/SparseCholesky>
+#include <unordered_set>
+
 #include "jobs/payload.h"
+#include "registration/nearest_neighbours.h"
 
 namespace mm::jobs {
 
@@ -11,6 +15,42 @@ ResyncContext make_resync_context(const PreparedAsset& asset) {
   // index by index (exact); the surface fit is the fallback for everything else.
   const int max_level = std::clamp(asset.levels + 1, 1, 4);
   return ResyncContext(asset.control, max_level, std::clamp(asset.levels, 1, max_level));
+}
+
+Resynchronized resynchronize_suspect(const ResyncContext& context, const Mesh& suspect,
+                                     const ResyncOptions& options) {
+  Resynchronized r = resynchronize(context, suspect, options);
+  if (r.method != "subdivided" || !r.order_recovered || r.level < 1) return r;
+  const SparseOperator& S = context.subdivision(r.level).S;
+  const Points moved = r.to_control_frame.apply(suspect.points);
+  const PointGrid grid(moved);
+  Eigen::SparseMatrix<double> St = S.transpose();
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(St * S);
+  if (solver.info() != Eigen::Success) return r;
+  const double diag = context.diagonal() > 0 ? context.diagonal() : 1.0;
+  Points matched(S.rows(), 3);
+  std::vector<int> pick(static_cast<std::size_t>(S.rows()));
+  auto match = [&](const Points& control) {
+    Points predicted = S * control;
+    for (Eigen::Index i = 0; i < predicted.rows(); ++i) {
+      pick[static_cast<std::size_t>(i)] = grid.nearest(predicted.row(i).transpose());
+      matched.row(i) = moved.row(pick[static_cast<std::size_t>(i)]);
+    }
+    return std::sqrt((predicted - matched).rowwise().squaredNorm().mean()) / diag;
+  };
+  double residual = match(r.points);
+  for (int round = 0; round < 8; ++round) {
+    Points x = solver.solve(St * matched);
+    if (solver.info() != Eigen::Success || !x.allFinite()) break;
+    double next = match(x);
+    if (!(next < residual)) break;
+    residual = next;
+    r.points = std::move(x);
+    r.residual_rms = residual;
+    std::unordered_set<int> distinct(pick.begin(), pick.end());
+    r.matched_fraction = static_cast<double>(distinct.size()) / static_cast<double>(S.rows());
+  }
+  return r;
 }
 
 Verdict detect_copy(const PreparedAsset& asset, const Points& registered,

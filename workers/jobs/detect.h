@@ -45,6 +45,16 @@ struct Verdict {
 // more); remeshed suspects are fitted against the surface at the copies' level.
 ResyncContext make_resync_context(const PreparedAsset& asset);
 
+// resynchronize(), then, when the suspect is a refined copy whose vertex order was lost (an STL
+// file, a re-export) and had to be recovered by nearest neighbours against the unmarked surface,
+// refines that: each refined vertex of the polyhedron just recovered takes its nearest suspect
+// vertex, and the control points are solved again by least squares, while the residual drops
+// (at most 8 rounds). The mark moves refined vertices by a fair fraction of their spacing, so
+// matching against the unmarked surface pairs about 1 % of them wrongly; against the recovered
+// (marked) surface almost none.
+Resynchronized resynchronize_suspect(const ResyncContext& context, const Mesh& suspect,
+                                     const ResyncOptions& options = {});
+
 // `registered`: the suspect resynchronised to asset.control (resynchronize(...).points).
 Verdict detect_copy(const PreparedAsset& asset, const Points& registered,
                     const std::vector<CopyCandidate>& copies, double p_threshold);
