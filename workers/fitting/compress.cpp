@@ -81,8 +81,11 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
   FitOptions fit;
   fit.levels = o.levels;
 
-  bool have = false;
+  bool have = false, best_fits = false;
   FitResult best;
+  // Vertex counts that failed (largest) and met the tolerance (smallest) so far: once a round
+  // meets it, the rounds left bisect between the two, since the growth step may overshoot.
+  int failed_n = 0, fit_n = 0;
   for (int round = 0; round < o.max_rounds; ++round) {
     ++out.rounds;
     auto control = build_control_polyhedron(mesh, features, seg, co);
@@ -90,13 +93,30 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
     const std::vector<double> result_error = result.target_error;
     const double rel = result.stats.hausdorff / result.stats.diagonal;
     const bool fits = rel <= o.tolerance;
-    if (!have || fits || result.stats.hausdorff < best.stats.hausdorff) {
+    const int n = control.mesh.num_vertices();
+    // Best: the fewest vertices among rounds that fit, else the smallest error.
+    if (!have || (fits && (!best_fits || n < best.control.num_vertices())) ||
+        (!fits && !best_fits && result.stats.hausdorff < best.stats.hausdorff)) {
       best = std::move(result);
       have = true;
+      best_fits = fits;
     }
     if (fits) {
       out.tolerance_met = true;
-      break;
+      fit_n = fit_n == 0 ? n : std::min(fit_n, n);
+    } else if (fit_n == 0 || n < fit_n) {
+      failed_n = std::max(failed_n, n);
+    }
+    if (fit_n > 0) {
+      // Bisect while it could still save a tenth of the vertices.
+      if (failed_n == 0 || fit_n - failed_n <= std::max(4, fit_n / 10)) break;
+      if (!fits) {
+        const double limit = o.tolerance * best.stats.diagonal;
+        for (size_t v = 0; v < result_error.size(); ++v)
+          if (result_error[v] > limit) co.importance[v] *= 1.0 + 8.0 * std::min(result_error[v] / limit, 4.0);
+      }
+      co.target_vertices = (failed_n + fit_n) / 2;
+      continue;
     }
     // At the budget, rounds only move vertices around (the importance keeps growing where the
     // error stays), which helps unevenly: keep going to max_rounds and keep the best.
