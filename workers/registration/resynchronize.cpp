@@ -199,16 +199,17 @@ struct Matching {
   int matched = 0;
 };
 
-// Mutual nearest neighbours between the aligned suspect vertices and the original refined ones.
-void mutual_pairs(const LevelData& level, const Points& suspect, Matching* m) {
+// Mutual nearest neighbours between the aligned suspect vertices and `target` (the refined
+// vertices, original or estimated), indexed by `target_grid`.
+void mutual_pairs(const Points& target, const PointGrid& target_grid, const Points& suspect, Matching* m) {
   const Points cur = m->transform.apply(suspect);
   const PointGrid suspect_grid(cur);
-  const int nr = static_cast<int>(level.points.rows());
+  const int nr = static_cast<int>(target.rows());
   m->suspect_of.assign(static_cast<size_t>(nr), -1);
   m->matched = 0;
   for (int j = 0; j < nr; ++j) {
-    const int i = suspect_grid.nearest(level.points.row(j).transpose());
-    if (i >= 0 && level.grid->nearest(cur.row(i).transpose()) == j) {
+    const int i = suspect_grid.nearest(target.row(j).transpose());
+    if (i >= 0 && target_grid.nearest(cur.row(i).transpose()) == j) {
       m->suspect_of[j] = i;
       ++m->matched;
     }
@@ -228,7 +229,7 @@ Matching match_vertices(const LevelData& level, const Points& suspect, const Res
   }
   // Refit the similarity on all mutual pairs (7 DOF from every vertex), then pair again.
   for (int round = 0; round < 2; ++round) {
-    mutual_pairs(level, suspect, &m);
+    mutual_pairs(level.points, *level.grid, suspect, &m);
     if (!o.align || m.matched < 3) break;
     Points src(m.matched, 3), dst(m.matched, 3);
     int k = 0;
@@ -240,7 +241,7 @@ Matching match_vertices(const LevelData& level, const Points& suspect, const Res
 }
 
 Resynchronized from_matching(const ResyncContext::Impl& ctx, const LevelData& level, int l,
-                             const Points& suspect, const Matching& m) {
+                             const Points& suspect, Matching m, int rounds) {
   Resynchronized r;
   r.method = l == 0 ? "polyhedron" : "subdivided";
   r.level = l;
@@ -248,19 +249,31 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const LevelData& le
   r.to_control_frame = m.transform;
   const Points cur = m.transform.apply(suspect);
   const int nr = static_cast<int>(level.points.rows());
-  r.matched_fraction = static_cast<double>(m.matched) / nr;
   std::vector<int> rows;
-  Points p(m.matched, 3);
-  for (int j = 0; j < nr; ++j)
-    if (m.suspect_of[j] >= 0) {
-      p.row(static_cast<Eigen::Index>(rows.size())) = cur.row(m.suspect_of[j]);
-      rows.push_back(j);
+  Points p;
+  int previous = -1;
+  for (int round = 0; round < rounds; ++round) {
+    if (round > 0) {
+      // The mark moves refined vertices by a fair fraction of their spacing, so pairs made with
+      // the original refined vertices miss or swap some; pair again with the estimate S x until
+      // the pairs stop growing.
+      const Points estimate = l == 0 ? r.points : apply_subdivision(level.op, r.points);
+      Matching next = m;
+      mutual_pairs(estimate, PointGrid(estimate), suspect, &next);
+      if (next.matched <= previous) break;
+      m = std::move(next);
     }
-  if (m.matched == nr) {
-    r.points = solve_level(level, l, p);
-  } else {
-    r.points = solve_rows(level, rows, p, ctx.control.points);
+    previous = m.matched;
+    rows.clear();
+    p.resize(m.matched, 3);
+    for (int j = 0; j < nr; ++j)
+      if (m.suspect_of[j] >= 0) {
+        p.row(static_cast<Eigen::Index>(rows.size())) = cur.row(m.suspect_of[j]);
+        rows.push_back(j);
+      }
+    r.points = m.matched == nr ? solve_level(level, l, p) : solve_rows(level, rows, p, ctx.control.points);
   }
+  r.matched_fraction = static_cast<double>(m.matched) / nr;
   // Level 0: what separates the suspect from the original (mark, quantisation, noise).
   const Points refined = l == 0 ? level.points : apply_subdivision(level.op, r.points);
   Points fitted(m.matched, 3);
@@ -445,7 +458,7 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
     if (std::abs(ns - nr) > o.count_tolerance * nr) continue;
     const Matching m = match_vertices(level, suspect.points, o);
     if (m.matched < o.min_matched_fraction * nr) continue;
-    Resynchronized r = from_matching(ctx, level, l, suspect.points, m);
+    Resynchronized r = from_matching(ctx, level, l, suspect.points, m, o.matching_rounds);
     refine_alignment(ctx, o, &r);
     if (l == 0) r.residual_rms = rms_rows(r.points, ctx.control.points) / ctx.diagonal;
     return r;

@@ -10,7 +10,8 @@
 //  - "subdivided": the control polyhedron refined L levels by build_subdivision/subdivide, maybe
 //    triangulated, noisy, moved. Vertex count equal to the level-L count: with consistent faces
 //    vertices correspond by index; otherwise (an STL file welds vertices and numbers them by first
-//    appearance) each is matched to its mutual nearest original refined vertex after alignment.
+//    appearance) each is matched to its mutual nearest original refined vertex after alignment,
+//    then again to the refined vertices of the estimate (the mark moves them).
 //    Then x solves min |S_L x - p| through the precomputed Cholesky factor of S_L^T S_L, which
 //    averages noise over the 4^L-fold redundant refined vertices. The same matching at L = 0
 //    recognises a polyhedron whose order was lost.
@@ -40,6 +41,7 @@ struct ResyncOptions {
   // nearest-neighbour pairs cover at least this fraction of the original refined vertices.
   double min_matched_fraction = 0.9;
   double count_tolerance = 0.02;  // relative vertex-count difference still tried by matching
+  int matching_rounds = 10;       // at most: solve, pair again with the estimate S x while pairs grow
   IcpOptions icp;
   // Surface fit.
   int suspect_samples = 10000;   // per kind: suspect vertices, area samples, refined vertices paired
