@@ -16,12 +16,14 @@
 //    averages noise over the 4^L-fold redundant refined vertices. The same matching at L = 0
 //    recognises a polyhedron whose order was lost.
 //  - "surface-fit": anything else (remeshed, re-tessellated). Similarity ICP against the original
-//    refined surface, then one linear least-squares fit of the control points with the
-//    original's topology, closest-point pairs both ways (as fitting/fit_control_points), pulled
-//    towards the original control points rather than smoothed: a Laplacian would erase the
-//    high-frequency mark. Only the mark's normal component is observable on a remeshed surface.
-// Alignment always uses 7 degrees of freedom (scale, rotation, translation) fitted to many
-// correspondences, so it cannot absorb the mark beyond its projection on those 7 directions.
+//    refined surface, then a few rounds of a linear point-to-plane fit of the control points with
+//    the original's topology, closest-point pairs both ways (as fitting/fit_control_points),
+//    pulled towards the original control points rather than smoothed: a Laplacian would erase
+//    the high-frequency mark. Only the mark's normal component is observable on a surface.
+// Alignment uses 7 degrees of freedom (scale, rotation, translation) fitted to many
+// correspondences, then re-estimated on the recovered control points with a spectrum-flattening
+// weight (fit_similarity_preserving_mark), so it takes little of the mark with it.
+// Measured behaviour and limits: docs/registration.md.
 #pragma once
 #include <cstdint>
 #include <memory>
