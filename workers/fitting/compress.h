@@ -19,7 +19,9 @@ struct CompressOptions {
 };
 
 struct CompressResult {
-  Mesh control;                 // in the input's units; creases and corners tagged
+  // In the input's units; creases and corners tagged; vertices numbered in the stream's
+  // traversal order (mm::traversal_vertex_order), which the codec codes cheapest.
+  Mesh control;
   int levels = 3;
   Normalization normalization;  // the unit-box transform the fit was done in
   FitStats stats;               // relative numbers: stats.x / stats.diagonal
