@@ -1,9 +1,7 @@
-// Exact nearest-neighbour queries on a fixed point set (uniform hash grid), for matching a
-// suspect's vertices to an original's when their order was lost.
+// Exact nearest-neighbour queries on a fixed point set (uniform grid of cells in compressed
+// row form), for matching a suspect's vertices to an original's when their order was lost.
 #pragma once
 #include <Eigen/Core>
-#include <cstdint>
-#include <unordered_map>
 #include <vector>
 
 #include "meshio/mesh.h"
@@ -17,17 +15,15 @@ class PointGrid {
   int size() const { return static_cast<int>(points_.rows()); }
   const Points& points() const { return points_; }
   // Index of the nearest point (ties: lowest index) and its squared distance; -1 when empty.
+  // Queries far outside the points' box cost no more than those inside.
   int nearest(const Eigen::Vector3d& q, double* squared_distance = nullptr) const;
 
  private:
-  Eigen::Vector3i cell_of(const Eigen::Vector3d& q) const;
-  static std::int64_t key(const Eigen::Vector3i& c);
   Points points_;
-  Eigen::Vector3d lo_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d lo_ = Eigen::Vector3d::Zero(), hi_ = Eigen::Vector3d::Zero();
   double cell_ = 1;
-  int max_ring_ = 1;
-  Eigen::Vector3i hi_cell_ = Eigen::Vector3i::Zero();
-  std::unordered_map<std::int64_t, std::vector<int>> cells_;
+  Eigen::Vector3i dims_ = Eigen::Vector3i::Ones();
+  std::vector<int> start_, index_;  // cell c holds index_[start_[c] .. start_[c + 1])
 };
 
 }  // namespace mm
