@@ -136,6 +136,8 @@ json to_json(const store::Detection& d) {
           {"correlation", opt(d.correlation)},
           {"p_value", opt(d.p_value)},
           {"decoded_payload_hex", d.decoded_payload_hex},
+          {"resync_method", d.resync_method},
+          {"resync_residual", opt(d.resync_residual)},
           {"details", parse_or_string(d.details_json)},
           {"created_at", iso_time(d.created_at)}};
 }
@@ -383,8 +385,9 @@ void add_listings(CLI::App& app) {
                                    std::string who = d.customer_id ? names[*d.customer_id] : "-";
                                    char p[32] = "-";
                                    if (d.p_value) std::snprintf(p, sizeof p, "%.3g", *d.p_value);
-                                   std::printf("%6lld  %-22s customer %-16s p %-10s %s\n",
+                                   std::printf("%6lld  %-22s customer %-16s p %-10s %-12s %s\n",
                                                static_cast<long long>(d.id), d.verdict.c_str(), who.c_str(), p,
+                                               d.resync_method.empty() ? "-" : d.resync_method.c_str(),
                                                d.suspect_name.c_str());
                                  });
   }));

@@ -541,6 +541,8 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
     details["best_neg_log10_corrected_p"] = std::max(0.0, best->neg_log10_p - std::log10(std::max(1, total)));
     details["resync_method"] = best_t->aligned.method;
     details["resync_residual"] = best_t->aligned.residual;
+    d.resync_method = best_t->aligned.method;
+    if (std::isfinite(best_t->aligned.residual)) d.resync_residual = best_t->aligned.residual;
     int bits = 32;
     for (const auto& c : best_t->copies)
       if (c.id == best->copy_id) {

@@ -131,7 +131,7 @@ IssuedCopy read_copy(const Stmt& s) {
 
 constexpr const char* kDetectionCols =
     "id, job_id, suspect_sha256, suspect_name, verdict, asset_id, copy_id, customer_id, "
-    "correlation, p_value, decoded_payload_hex, details_json, created_at";
+    "correlation, p_value, decoded_payload_hex, details_json, created_at, resync_method, resync_residual";
 Detection read_detection(const Stmt& s) {
   Detection d;
   d.id = s.i64(0);
@@ -147,6 +147,8 @@ Detection read_detection(const Stmt& s) {
   d.decoded_payload_hex = s.text(10);
   d.details_json = s.text(11);
   d.created_at = s.i64(12);
+  d.resync_method = s.text(13);
+  d.resync_residual = s.opt_f64(14);
   return d;
 }
 
@@ -757,11 +759,12 @@ class SqliteStore final : public Store {
     require_json(d.details_json, "detection details_json");
     Stmt ins(db_,
              "INSERT INTO detections(job_id, suspect_sha256, suspect_name, verdict, asset_id, copy_id, "
-             "customer_id, correlation, p_value, decoded_payload_hex, details_json, created_at) "
-             "VALUES(?,?,?,?,?,?,?,?,?,?,?,?) RETURNING id");
+             "customer_id, correlation, p_value, decoded_payload_hex, details_json, created_at, resync_method, "
+             "resync_residual) VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?) RETURNING id");
     ins.bind(1, job_id).bind(2, d.suspect_sha256).bind(3, d.suspect_name).bind(4, d.verdict)
         .bind(5, d.asset_id).bind(6, d.copy_id).bind(7, d.customer_id).bind(8, d.correlation)
-        .bind(9, d.p_value).bind(10, d.decoded_payload_hex).bind(11, d.details_json).bind(12, now()).step();
+        .bind(9, d.p_value).bind(10, d.decoded_payload_hex).bind(11, d.details_json).bind(12, now())
+        .bind(13, d.resync_method).bind(14, d.resync_residual).step();
     std::int64_t id = ins.i64(0);
     ins.run();
     insert_audit({actor, "detection.record", "detection:" + std::to_string(id),

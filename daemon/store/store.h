@@ -117,6 +117,8 @@ struct NewDetection {
   std::optional<double> p_value;  // corrected for the number of copies tried
   std::string decoded_payload_hex;
   std::string details_json = "{}";
+  std::string resync_method;                // best candidate's: polyhedron | subdivided | surface-fit
+  std::optional<double> resync_residual;    // its residual RMS / control diagonal
 };
 struct Detection : NewDetection {
   std::int64_t id = 0;

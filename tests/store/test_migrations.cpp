@@ -75,6 +75,46 @@ TEST(Migrations, PragmasWalAndForeignKeys) {
   EXPECT_TRUE(s->integrity_ok());
 }
 
+// A database created by the first schema (with a detection row from a build that kept the resync
+// method only in details_json) is upgraded in place: columns added, row back-filled, nothing lost.
+TEST(Migrations, UpgradesAVersion1DatabaseWithRows) {
+  TempDir dir;
+  auto o = options(dir);
+  const auto& ms = store::embedded_migrations();
+  ASSERT_GE(ms.size(), 2u);
+  ASSERT_EQ(ms[0].version, 1);
+  raw_query(o.db_path, std::string("CREATE TABLE schema_version (version INTEGER PRIMARY KEY, name TEXT NOT NULL, "
+                                   "applied_at INTEGER NOT NULL);") +
+                           ms[0].sql + "; INSERT INTO schema_version VALUES (1, '" + ms[0].name + "', 0);" +
+                           "INSERT INTO detections(suspect_sha256, verdict, details_json, created_at) VALUES "
+                           "('aa', 'attributed', '{\"resync_method\": \"subdivided\", \"resync_residual\": 0.25}', 1),"
+                           "('bb', 'unknown asset', '{}', 2);");
+  auto s = store::open_sqlite_store(o);
+  EXPECT_EQ(s->schema_version(), ms.back().version);
+  auto dets = s->list_detections();
+  ASSERT_EQ(dets.size(), 2u);
+  for (const auto& d : dets) {
+    if (d.suspect_sha256 == "aa") {
+      EXPECT_EQ(d.resync_method, "subdivided");
+      ASSERT_TRUE(d.resync_residual);
+      EXPECT_EQ(*d.resync_residual, 0.25);
+    } else {
+      EXPECT_EQ(d.resync_method, "");
+      EXPECT_FALSE(d.resync_residual);
+    }
+  }
+  // New rows carry the columns.
+  store::NewDetection n;
+  n.suspect_sha256 = "cc";
+  n.verdict = "attributed";
+  n.resync_method = "polyhedron";
+  n.resync_residual = 0.5;
+  auto back = s->record_detection(n);
+  EXPECT_EQ(back.resync_method, "polyhedron");
+  EXPECT_EQ(*back.resync_residual, 0.5);
+  EXPECT_TRUE(s->integrity_ok());
+}
+
 TEST(Migrations, RefusesDatabaseFromNewerVersion) {
   TempDir dir;
   auto o = options(dir);
