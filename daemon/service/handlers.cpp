@@ -1,6 +1,9 @@
 #include "service/handlers.h"
 
+#include <fcntl.h>
 #include <sodium.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
@@ -13,9 +16,9 @@
 #include <list>
 #include <map>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string_view>
+#include <system_error>
 
 #include "codec/stream.h"
 #include "jobs/detect.h"
@@ -191,6 +194,52 @@ std::string copy_idempotency_key(const store::Job& job) {
   return job.idempotency_key.empty() ? "job:" + std::to_string(job.id) : job.idempotency_key;
 }
 
+// The stream file, written like write_mesh writes meshes: ".<name>.tmp.XXXXXX" beside it, fsync,
+// rename, fsync of the folder. The daemon removes such names left by a killed process at start
+// (remove_stale_output_temps); the codec's own writer uses another temporary name.
+void write_bytes_atomic(const std::string& path, const std::vector<std::uint8_t>& bytes) {
+  fs::path target(path);
+  std::string tmpl = (target.parent_path() / ("." + target.filename().string() + ".tmp.XXXXXX")).string();
+  std::vector<char> name(tmpl.begin(), tmpl.end());
+  name.push_back('\0');
+  int fd = ::mkstemp(name.data());
+  if (fd < 0) throw std::system_error(errno, std::generic_category(), "cannot create a temporary file for " + path);
+  const std::string tmp(name.data());
+  auto fail = [&](const char* what) {
+    int e = errno;
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    throw std::system_error(e, std::generic_category(), std::string(what) + " " + path);
+  };
+  ::fchmod(fd, 0644);
+  const std::uint8_t* p = bytes.data();
+  std::size_t left = bytes.size();
+  while (left > 0) {
+    ssize_t w = ::write(fd, p, left);
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      fail("cannot write");
+    }
+    p += w;
+    left -= static_cast<std::size_t>(w);
+  }
+  if (::fsync(fd) != 0) fail("cannot fsync");
+  if (::close(fd) != 0) {
+    ::unlink(tmp.c_str());
+    throw std::system_error(errno, std::generic_category(), "cannot close " + path);
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    int e = errno;
+    ::unlink(tmp.c_str());
+    throw std::system_error(e, std::generic_category(), "cannot rename into " + path);
+  }
+  int dfd = ::open(target.parent_path().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dfd >= 0) {
+    ::fsync(dfd);
+    ::close(dfd);
+  }
+}
+
 std::string hex_of(const unsigned char* p, std::size_t n) {
   static const char* digits = "0123456789abcdef";
   std::string s;
@@ -269,7 +318,7 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   const std::string base = output_base_for(cfg, customer->name, name, idem);
   const std::string stream_path = base + ".mmc", out = base + "." + out_format;
   fs::create_directories(fs::path(base).parent_path());
-  write_stream_file(stream_path, files.stream);
+  write_bytes_atomic(stream_path, files.stream);
   write_mesh(files.decoded, out);
   const std::string stream_sha = store::sha256_file_hex(stream_path), out_sha = store::sha256_file_hex(out);
 

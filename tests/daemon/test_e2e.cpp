@@ -318,6 +318,10 @@ TEST_F(E2E, KillNineMidBatchThenRestartCompletesEveryJobExactlyOnce) {
   std::vector<std::int64_t> killed;
   for (const auto& j : st->list_jobs(running)) killed.push_back(j.id);
   EXPECT_FALSE(killed.empty());
+  // What a kill during a stream write leaves (the atomic writer's temporary name): removed at start.
+  fs::create_directories(out / "alpha");
+  const fs::path stale = out / "alpha" / ".fandisk_quads-000000000000.mmc.tmp.AbC123";
+  std::ofstream(stale) << "MMC half-written";
   {
     Daemon d = start();
     ASSERT_TRUE(wait_for([&] {
@@ -328,6 +332,7 @@ TEST_F(E2E, KillNineMidBatchThenRestartCompletesEveryJobExactlyOnce) {
     ::kill(d.pid, SIGTERM);
     ASSERT_TRUE(d.wait_exit(30s));
   }
+  EXPECT_FALSE(fs::exists(stale));
   auto jobs = st->list_jobs({});
   ASSERT_EQ(jobs.size(), 16u);
   for (const auto& j : jobs) EXPECT_EQ(j.state, mm::store::JobState::completed) << j.id;
