@@ -193,16 +193,22 @@ TEST_F(E2E, ProtectsTwoCustomersAndTracesTheLeak) {
     drop_mesh("protect/beta", m);
   }
   drop_bytes("protect/alpha", "broken.off", "OFF\n4 1 0\n0 0 0\n1 0 0\nnan 1 0\n");
+  // Well-formed but uncompressible (every vertex on one line): fails at compression.
+  drop_bytes("protect/alpha", "flat.off",
+             "OFF\n5 5 0\n0 0 0\n1 0 0\n2 0 0\n3 0 0\n4 0 0\n3 0 1 4\n3 1 2 4\n3 2 3 4\n3 3 0 4\n4 0 3 2 1\n");
   drop_mesh("protect/ghost", "abc7.stl");
   ASSERT_TRUE(wait_for([&] {
     return count_files(drop / "done/protect/alpha") == 4 && count_files(drop / "done/protect/beta") == 4 &&
-           count_files(drop / "failed/protect/alpha") == 1 && count_files(drop / "failed/protect/ghost") == 1;
+           count_files(drop / "failed/protect/alpha") == 2 && count_files(drop / "failed/protect/ghost") == 1;
   }, 240s)) << log();
 
   // The malformed file failed with its reason; the unknown customer too; the rest finished.
   json broken = reason(drop / "failed/protect/alpha/broken.off");
   EXPECT_EQ(broken["state"], "discarded");
   EXPECT_NE(broken["reason"].get<std::string>().find("broken.off"), std::string::npos) << broken.dump();
+  json flat = reason(drop / "failed/protect/alpha/flat.off");
+  EXPECT_EQ(flat["state"], "discarded");
+  EXPECT_NE(flat["reason"].get<std::string>().find("compression failed: flat.off"), std::string::npos) << flat.dump();
   json ghost = reason(drop / "failed/protect/ghost/abc7.stl");
   EXPECT_NE(ghost["reason"].get<std::string>().find("unknown customer \"ghost\""), std::string::npos);
   EXPECT_EQ(count_files(drop / "protect/alpha"), 0);
@@ -211,7 +217,8 @@ TEST_F(E2E, ProtectsTwoCustomersAndTracesTheLeak) {
   auto st = store();
   auto copies = st->list_copies();
   ASSERT_EQ(copies.size(), 8u);
-  EXPECT_EQ(st->list_assets().size(), 4u);  // deduplicated originals
+  // Deduplicated originals; flat.off is stored too (the original is kept before compressing).
+  EXPECT_EQ(st->list_assets().size(), 5u);
   for (const auto& c : copies) expect_outputs_intact(c);
   for (const auto& m : kMeshes) {
     json r = reason(drop / "done/protect/beta" / m);
