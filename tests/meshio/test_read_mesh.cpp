@@ -9,7 +9,7 @@
 #include "common/shared_meshes.h"
 #include "meshio/read_mesh.h"
 #include "meshio/repair_manifold.h"
-#include "meshio/temp_dir.h"
+#include "common/temp_dir.h"
 
 namespace {
 
@@ -88,7 +88,7 @@ TEST(ReadMesh, OffKeepsFullDoublePrecisionAndOrder) {
 }
 
 std::string temp_path(const std::string& name) {
-  return (mm::test::meshio_temp_dir() / name).string();
+  return (mm::test::scratch_dir("mm_meshio_test") / name).string();
 }
 
 void write_text(const std::string& path, const std::string& text) {

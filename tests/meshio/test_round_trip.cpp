@@ -7,14 +7,14 @@
 
 #include "common/shared_meshes.h"
 #include "meshio/read_mesh.h"
-#include "meshio/temp_dir.h"
+#include "common/temp_dir.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 
 fs::path temp_dir() {
-  return mm::test::meshio_temp_dir();
+  return mm::test::scratch_dir("mm_meshio_test");
 }
 
 // A mixed quad/triangle strip with coordinates no float can hold exactly.

@@ -7,6 +7,7 @@
 #include <numeric>
 #include <random>
 
+#include "common/shuffled_mesh.h"
 #include "meshio/normalize.h"
 #include "meshio/read_mesh.h"
 #include "registration/remesh.h"
@@ -16,6 +17,7 @@
 namespace {
 
 using namespace mm;
+using mm::test::shuffled;
 
 const Mesh& control() {
   static const Mesh m = [] {
@@ -29,22 +31,6 @@ const Mesh& control() {
 const ResyncContext& context() {
   static const ResyncContext ctx(control(), 3);
   return ctx;
-}
-
-Mesh shuffled(const Mesh& m, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<int> perm(m.num_vertices());
-  std::iota(perm.begin(), perm.end(), 0);
-  std::shuffle(perm.begin(), perm.end(), rng);
-  Mesh out;
-  out.points.resize(m.num_vertices(), 3);
-  for (int v = 0; v < m.num_vertices(); ++v) out.points.row(perm[v]) = m.points.row(v);
-  for (const auto& f : m.faces) {
-    std::vector<int> g;
-    for (int v : f) g.push_back(perm[v]);
-    out.faces.push_back(g);
-  }
-  return out;
 }
 
 void BM_Context(benchmark::State& state) {

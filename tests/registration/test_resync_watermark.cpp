@@ -14,6 +14,7 @@
 
 #include "codec/stream.h"
 #include "common/shared_meshes.h"
+#include "common/temp_dir.h"
 #include "meshio/normalize.h"
 #include "meshio/read_mesh.h"
 #include "registration/remesh.h"
@@ -74,19 +75,7 @@ void add_noise(Mesh& m, double amplitude, std::uint64_t seed) {
     m.points.data()[i] += amplitude * (static_cast<double>(rng() >> 11) * 0x1.0p-52 - 1.0);
 }
 
-std::filesystem::path temp_dir() {
-  static const struct Dir {
-    std::filesystem::path path;
-    Dir() : path(std::filesystem::temp_directory_path() / ("mm_registration_test_" + std::to_string(::getpid()))) {
-      std::filesystem::create_directories(path);
-    }
-    ~Dir() {
-      std::error_code ec;
-      std::filesystem::remove_all(path, ec);
-    }
-  } dir;
-  return dir.path;
-}
+const std::filesystem::path& temp_dir() { return mm::test::scratch_dir("mm_registration_test"); }
 
 void report(const char* what, const Resynchronized& r, const Extraction& x) {
   std::printf("  %-34s %-11s L%d matched %.3f residual %.2e corr %.3f -log10 p %.1f bits %s\n", what,

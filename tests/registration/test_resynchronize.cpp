@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "common/shared_meshes.h"
+#include "common/shuffled_mesh.h"
 #include "meshio/normalize.h"
 #include "meshio/read_mesh.h"
 #include "registration/resynchronize.h"
@@ -20,6 +21,7 @@ namespace {
 
 using mm::Mesh;
 using mm::Points;
+using mm::test::shuffled;
 
 Mesh fandisk_quads() {
   Mesh m = mm::read_mesh(mm::test::shared_mesh("fandisk_quads.off"));
@@ -34,25 +36,6 @@ const mm::ResyncContext& context() {
 }
 
 double max_error(const Points& a, const Points& b) { return (a - b).rowwise().norm().maxCoeff(); }
-
-// Vertices renumbered by a seeded permutation, faces remapped and listed in shuffled order.
-Mesh shuffled(const Mesh& m, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<int> perm(m.num_vertices());
-  std::iota(perm.begin(), perm.end(), 0);
-  std::shuffle(perm.begin(), perm.end(), rng);
-  Mesh out;
-  out.points.resize(m.num_vertices(), 3);
-  for (int v = 0; v < m.num_vertices(); ++v) out.points.row(perm[v]) = m.points.row(v);
-  for (const auto& f : m.faces) {
-    std::vector<int> g;
-    for (int v : f) g.push_back(perm[v]);
-    std::rotate(g.begin(), g.begin() + static_cast<long>(rng() % g.size()), g.end());
-    out.faces.push_back(g);
-  }
-  std::shuffle(out.faces.begin(), out.faces.end(), rng);
-  return out;
-}
 
 mm::Similarity some_similarity() {
   mm::Similarity s;
