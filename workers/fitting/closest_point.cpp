@@ -54,7 +54,8 @@ struct TriangleIndex::Impl {
   }
 };
 
-TriangleIndex::TriangleIndex(const Points& points, std::vector<std::array<int, 3>> triangles)
+TriangleIndex::TriangleIndex(const Points& points, std::vector<std::array<int, 3>> triangles,
+                             bool eager_search_tree)
     : impl_(std::make_unique<Impl>()), triangles_(std::move(triangles)) {
   for (size_t t = 0; t < triangles_.size(); ++t) {
     const auto& f = triangles_[t];
@@ -66,7 +67,8 @@ TriangleIndex::TriangleIndex(const Points& points, std::vector<std::array<int, 3
   impl_->tree_of.assign(triangles_.size(), -1);
   for (size_t k = 0; k < impl_->id.size(); ++k) impl_->tree_of[impl_->id[k]] = static_cast<int>(k);
   impl_->tree.rebuild(impl_->tris.begin(), impl_->tris.end());
-  if (!impl_->tris.empty()) impl_->tree.accelerate_distance_queries();
+  // CGAL builds the same kd-tree lazily (thread-safely) on the first query without a hint.
+  if (!impl_->tris.empty() && eager_search_tree) impl_->tree.accelerate_distance_queries();
 }
 TriangleIndex::~TriangleIndex() = default;
 bool TriangleIndex::empty() const { return impl_->tris.empty(); }

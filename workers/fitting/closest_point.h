@@ -34,7 +34,10 @@ struct SegmentHit {
 class TriangleIndex {
  public:
   // Triangles as vertex index triples into `points`; degenerate ones are left out of the tree.
-  TriangleIndex(const Points& points, std::vector<std::array<int, 3>> triangles);
+  // Queries without a hint start from a kd-tree over the triangles, built here when
+  // `eager_search_tree`, else on the first such query (never, when every query has a hint).
+  TriangleIndex(const Points& points, std::vector<std::array<int, 3>> triangles,
+                bool eager_search_tree = true);
   ~TriangleIndex();
   TriangleIndex(const TriangleIndex&) = delete;
   TriangleIndex& operator=(const TriangleIndex&) = delete;

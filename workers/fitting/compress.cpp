@@ -80,6 +80,8 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
   co.importance.assign(mesh.num_vertices(), 1.0);
   FitOptions fit;
   fit.levels = o.levels;
+  // The target's trees and samples are the same in every round.
+  const FitTarget target(mesh, features, fit);
 
   bool have = false, best_fits = false;
   FitResult best;
@@ -89,7 +91,7 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
   for (int round = 0; round < o.max_rounds; ++round) {
     ++out.rounds;
     auto control = build_control_polyhedron(mesh, features, seg, co);
-    auto result = fit_control_points(control.mesh, mesh, features, fit);
+    auto result = fit_control_points(control.mesh, target, fit);
     const std::vector<double> result_error = result.target_error;
     const double rel = result.stats.hausdorff / result.stats.diagonal;
     const bool fits = rel <= o.tolerance;

@@ -143,7 +143,9 @@ Correspondences correspond(const Points& R, const Mesh& refined,
                            const SegmentIndex& target_creases, const FitOptions& o,
                            bool with_creases, Hints* hints) {
   Correspondences c;
-  TriangleIndex surf(R, refined_tris);
+  // After the first iteration every query on the moving surface has a hint: its kd-tree (for
+  // queries without one) is only built when a query needs it.
+  TriangleIndex surf(R, refined_tris, /*eager_search_tree=*/false);
   if (hints) {
     hints->on_surface.resize(samples.surface.size());
     hints->on_target.resize(static_cast<size_t>(R.rows()));
@@ -217,27 +219,57 @@ double diagonal_of(const Points& p) {
 
 }  // namespace
 
+struct FitTarget::Impl {
+  Impl(const Mesh& target, const Features& features, const FitOptions& o)
+      : tris_list(triangle_list(target)),
+        tris(target.points, tris_list),
+        creases(target.points, features.sharp_edges),
+        samples(sample_target(target, tris_list, features, o)),
+        iteration_samples(samples),
+        vertices(target.num_vertices()),
+        diagonal(diagonal_of(target.points)),
+        options(o) {
+    // The iterations see a capped, evenly strided subset of the target's vertices.
+    if (vertices > o.max_vertex_samples) {
+      iteration_samples.surface.clear();
+      for (long long k = 0; k < o.max_vertex_samples; ++k)
+        iteration_samples.surface.push_back(samples.surface[static_cast<size_t>(k * vertices / o.max_vertex_samples)]);
+      iteration_samples.surface.insert(iteration_samples.surface.end(), samples.surface.begin() + vertices,
+                                       samples.surface.end());
+    }
+  }
+  std::vector<std::array<int, 3>> tris_list;
+  TriangleIndex tris;
+  SegmentIndex creases;
+  TargetSamples samples, iteration_samples;
+  int vertices;
+  double diagonal;
+  FitOptions options;  // those the samples were drawn with
+};
+
+FitTarget::FitTarget(const Mesh& target, const Features& features, const FitOptions& options)
+    : impl_(std::make_unique<Impl>(target, features, options)) {}
+FitTarget::~FitTarget() = default;
+
 FitResult fit_control_points(const Mesh& control, const Mesh& target, const Features& features,
                              const FitOptions& o) {
+  return fit_control_points(control, FitTarget(target, features, o), o);
+}
+
+FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, const FitOptions& o) {
   if (control.num_vertices() == 0 || control.faces.empty())
     throw std::invalid_argument("control mesh is empty");
+  const FitTarget::Impl& tg = *prepared.impl_;
+  if (tg.options.seed != o.seed || tg.options.area_samples != o.area_samples ||
+      tg.options.max_vertex_samples != o.max_vertex_samples)
+    throw std::invalid_argument("fit target was prepared with other sampling options");
   const auto op = build_subdivision(control, o.levels);
   const auto refined_creases = crease_edges(op.refined);
   const auto refined_tris = triangle_list(op.refined);
-  const auto target_tris_list = triangle_list(target);
-  const TriangleIndex target_tris(target.points, target_tris_list);
-  const SegmentIndex target_creases(target.points, features.sharp_edges);
-  const auto samples = sample_target(target, target_tris_list, features, o);
-  // The iterations see a capped, evenly strided subset of the target's vertices.
-  TargetSamples iteration_samples = samples;
-  const int nt = target.num_vertices();
-  if (nt > o.max_vertex_samples) {
-    iteration_samples.surface.clear();
-    for (long long k = 0; k < o.max_vertex_samples; ++k)
-      iteration_samples.surface.push_back(samples.surface[static_cast<size_t>(k * nt / o.max_vertex_samples)]);
-    iteration_samples.surface.insert(iteration_samples.surface.end(), samples.surface.begin() + nt,
-                                     samples.surface.end());
-  }
+  const TriangleIndex& target_tris = tg.tris;
+  const SegmentIndex& target_creases = tg.creases;
+  const TargetSamples& samples = tg.samples;
+  const TargetSamples& iteration_samples = tg.iteration_samples;
   Hints hints;
   const bool with_creases = !target_creases.empty();
 
@@ -280,10 +312,10 @@ FitResult fit_control_points(const Mesh& control, const Mesh& target, const Feat
   Points R = op.S * X;
   auto c = correspond(R, op.refined, refined_tris, refined_creases, samples, target_tris,
                       target_creases, o, false, nullptr);
-  out.stats = stats_of(c.surface_dist, diagonal_of(target.points));
+  out.stats = stats_of(c.surface_dist, tg.diagonal);
   // The first rows are the target vertices (sample_target puts them first).
-  if (c.surface_dist.size() >= static_cast<size_t>(target.num_vertices()))
-    out.target_error.assign(c.surface_dist.begin(), c.surface_dist.begin() + target.num_vertices());
+  if (c.surface_dist.size() >= static_cast<size_t>(tg.vertices))
+    out.target_error.assign(c.surface_dist.begin(), c.surface_dist.begin() + tg.vertices);
   // Blame each distance on the control vertex with the largest weight in the refined vertex's row.
   out.vertex_error.assign(n, 0.0);
   std::vector<int> owner(op.S.rows(), -1);

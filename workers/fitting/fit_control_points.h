@@ -6,6 +6,7 @@
 // matched against the target's sharp edges only, then solves one sparse linear system for x, y, z.
 #pragma once
 #include <cstdint>
+#include <memory>
 
 #include "fitting/sharp_features.h"
 #include "meshio/mesh.h"
@@ -37,9 +38,29 @@ struct FitResult {
   std::vector<double> target_error;   // per target vertex: distance to the subdivided surface
 };
 
+// What a fit needs of the target (its AABB trees and samples), built once and reused by every
+// fit against it (compress() fits several control meshes to one target).
+class FitTarget {
+ public:
+  // `features` are the target's (sharp edges give the crease samples); everything needed is
+  // copied. The sampling options (seed, area_samples, max_vertex_samples) are fixed here.
+  FitTarget(const Mesh& target, const Features& features, const FitOptions& options = {});
+  ~FitTarget();
+  FitTarget(const FitTarget&) = delete;
+  FitTarget& operator=(const FitTarget&) = delete;
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+  friend FitResult fit_control_points(const Mesh&, const FitTarget&, const FitOptions&);
+};
+
 // `target_features` are the target's (sharp edges give the crease samples).
 FitResult fit_control_points(const Mesh& control, const Mesh& target,
                              const Features& target_features, const FitOptions& options = {});
+// The same against a prepared target; throws std::invalid_argument when `options` samples
+// differently from those the target was prepared with.
+FitResult fit_control_points(const Mesh& control, const FitTarget& target, const FitOptions& options = {});
 
 // The same distance statistics for a given control mesh, without moving anything.
 FitStats measure_fit(const Mesh& control, int levels, const Mesh& target);
