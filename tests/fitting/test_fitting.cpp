@@ -12,6 +12,7 @@
 #include "meshio/read_mesh.h"
 #include "quality/surface_distance.h"
 #include "subdivision/decompress.h"
+#include "subdivision/subdivide.h"
 
 namespace {
 
@@ -195,6 +196,31 @@ TEST(Compress, BadInputIsRejectedWithAReason) {
   bad_index.points(1, 0) = 2;
   bad_index.faces = {{0, 1, 7}};
   EXPECT_THROW(mm::compress(bad_index, {}, "index.off"), mm::InputError);
+}
+
+// One Loop step of the faceted abc5 keeps its facets' edges above the crease angle: nearly every
+// vertex becomes a corner, which no decimation removes. Fitting a control mesh of the input's
+// size took 71 s and 726 MB; compress refuses it up front, naming the file and the reason, and
+// a budget that does hold the corners still compresses the original part.
+TEST(Compress, CornerHeavyInputIsRefusedBeforeFitting) {
+  MM_REQUIRE_SHARED_MESHES();
+  const mm::Mesh abc5 = mm::read_mesh(mm::test::shared_mesh("abc5.stl"));
+  const mm::Mesh refined = mm::subdivide(abc5, 1);
+  ASSERT_GT(refined.num_vertices(), 10000);
+  mm::CompressOptions o;
+  try {
+    mm::compress(refined, o, "abc5_loop1.off");
+    FAIL() << "a mesh with more corners than the budget was compressed";
+  } catch (const mm::InputError& e) {
+    EXPECT_EQ(e.source(), "abc5_loop1.off");
+    EXPECT_NE(std::string(e.reason()).find("corners"), std::string::npos) << e.reason();
+    EXPECT_NE(std::string(e.reason()).find("budget of 1000"), std::string::npos) << e.reason();
+  }
+  o.max_rounds = 1;
+  o.levels = 2;
+  const auto r = mm::compress(abc5, o, "abc5.stl");
+  EXPECT_LE(r.control.num_vertices(), o.max_vertices);
+  EXPECT_LE(r.corners, o.max_vertices);
 }
 
 // Every shared mesh compresses (quickly, one round at level 2 here) or fails with an InputError

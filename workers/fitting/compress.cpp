@@ -72,6 +72,17 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
   out.sharp_edges = static_cast<int>(features.sharp_edges.size());
   out.corners = static_cast<int>(features.corners.size());
   out.patches = seg.num_patches;
+  // Corners are never collapsed, so they alone bound the control mesh from below. A faceted or
+  // noisy mesh whose every other vertex is a corner (a Loop step of a coarse faceted part) has
+  // no compact control polyhedron, and fitting one of the input's size at `levels` costs
+  // 4^levels times the input in time and memory: refuse it before any of that work.
+  if (static_cast<int>(features.corners.size()) > o.max_vertices)
+    throw InputError(source, std::to_string(features.corners.size()) + " of " +
+                                 std::to_string(mesh.num_vertices()) +
+                                 " vertices are sharp-feature corners (kept as control vertices), more than the "
+                                 "control vertex budget of " + std::to_string(o.max_vertices) +
+                                 ": no compact control polyhedron (faceted or noisy surface? a larger "
+                                 "crease angle or budget may help)");
 
   ControlOptions co;
   // Start small (the corners, a little per patch); rounds add vertices where they are needed.
@@ -91,6 +102,13 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
   for (int round = 0; round < o.max_rounds; ++round) {
     ++out.rounds;
     auto control = build_control_polyhedron(mesh, features, seg, co);
+    // The decimation stops early when only corners and crease floors are left; far above the
+    // budget the fit's refined mesh (4^levels times the control mesh) is the blow-up above.
+    if (round == 0 && control.mesh.num_vertices() > 2 * o.max_vertices)
+      throw InputError(source, "the control polyhedron keeps " + std::to_string(control.mesh.num_vertices()) +
+                                   " vertices (corners and crease polylines cannot shrink further), more than "
+                                   "twice the control vertex budget of " + std::to_string(o.max_vertices) +
+                                   ": no compact control polyhedron");
     auto result = fit_control_points(control.mesh, target, fit);
     const std::vector<double> result_error = result.target_error;
     const double rel = result.stats.hausdorff / result.stats.diagonal;
