@@ -90,10 +90,23 @@ TriangleHit TriangleIndex::closest(const Eigen::Vector3d& q, const TriangleHint&
 struct SegmentIndex::Impl {
   std::vector<Seg> segs;
   std::vector<int> id;
+  std::vector<int> tree_of;
   SegTree tree;
+  SegmentHit hit(const Eigen::Vector3d& q, const K::Point_3& pt, SegIt it) const {
+    const Seg& seg = *it;
+    SegmentHit h;
+    h.segment = id[static_cast<size_t>(it - segs.begin())];
+    h.point = ei(pt);
+    Eigen::Vector3d a = ei(seg.source()), b = ei(seg.target());
+    double len2 = (b - a).squaredNorm();
+    h.t = len2 > 0 ? std::clamp((h.point - a).dot(b - a) / len2, 0.0, 1.0) : 0.0;
+    h.distance = (h.point - q).norm();
+    return h;
+  }
 };
 
-SegmentIndex::SegmentIndex(const Points& points, std::vector<std::pair<int, int>> segments)
+SegmentIndex::SegmentIndex(const Points& points, std::vector<std::pair<int, int>> segments,
+                           bool eager_search_tree)
     : impl_(std::make_unique<Impl>()), segments_(std::move(segments)) {
   for (size_t s = 0; s < segments_.size(); ++s) {
     Seg seg(cg(points.row(segments_[s].first)), cg(points.row(segments_[s].second)));
@@ -101,23 +114,26 @@ SegmentIndex::SegmentIndex(const Points& points, std::vector<std::pair<int, int>
     impl_->segs.push_back(seg);
     impl_->id.push_back(static_cast<int>(s));
   }
+  impl_->tree_of.assign(segments_.size(), -1);
+  for (size_t k = 0; k < impl_->id.size(); ++k) impl_->tree_of[impl_->id[k]] = static_cast<int>(k);
   impl_->tree.rebuild(impl_->segs.begin(), impl_->segs.end());
-  if (!impl_->segs.empty()) impl_->tree.accelerate_distance_queries();
+  if (!impl_->segs.empty() && eager_search_tree) impl_->tree.accelerate_distance_queries();
 }
 SegmentIndex::~SegmentIndex() = default;
 bool SegmentIndex::empty() const { return impl_->segs.empty(); }
 
 SegmentHit SegmentIndex::closest(const Eigen::Vector3d& q) const {
   auto [pt, it] = impl_->tree.closest_point_and_primitive(cg(q));
-  const Seg& seg = *it;
-  SegmentHit hit;
-  hit.segment = impl_->id[static_cast<size_t>(it - impl_->segs.begin())];
-  hit.point = ei(pt);
-  Eigen::Vector3d a = ei(seg.source()), b = ei(seg.target());
-  double len2 = (b - a).squaredNorm();
-  hit.t = len2 > 0 ? std::clamp((hit.point - a).dot(b - a) / len2, 0.0, 1.0) : 0.0;
-  hit.distance = (hit.point - q).norm();
-  return hit;
+  return impl_->hit(q, pt, it);
+}
+
+SegmentHit SegmentIndex::closest(const Eigen::Vector3d& q, const SegmentHint& hint) const {
+  if (hint.segment < 0 || hint.segment >= static_cast<int>(impl_->tree_of.size()) ||
+      impl_->tree_of[hint.segment] < 0)
+    return closest(q);
+  SegIt hint_it = impl_->segs.begin() + impl_->tree_of[hint.segment];
+  auto [pt, it] = impl_->tree.closest_point_and_primitive(cg(q), std::make_pair(cg(hint.point), hint_it));
+  return impl_->hit(q, pt, it);
 }
 
 std::vector<std::array<int, 3>> triangle_list(const Mesh& mesh) {

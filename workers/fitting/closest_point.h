@@ -52,14 +52,23 @@ class TriangleIndex {
   std::vector<std::array<int, 3>> triangles_;
 };
 
+struct SegmentHint {
+  int segment = -1;
+  Eigen::Vector3d point;  // must lie on that segment (current positions)
+};
+
 class SegmentIndex {
  public:
-  SegmentIndex(const Points& points, std::vector<std::pair<int, int>> segments);
+  // Like TriangleIndex: the kd-tree for queries without a hint is built here when
+  // `eager_search_tree`, else on the first such query.
+  SegmentIndex(const Points& points, std::vector<std::pair<int, int>> segments,
+               bool eager_search_tree = true);
   ~SegmentIndex();
   SegmentIndex(const SegmentIndex&) = delete;
   SegmentIndex& operator=(const SegmentIndex&) = delete;
   bool empty() const;
   SegmentHit closest(const Eigen::Vector3d& q) const;
+  SegmentHit closest(const Eigen::Vector3d& q, const SegmentHint& hint) const;
   const std::pair<int, int>& segment(int s) const { return segments_[s]; }
 
  private:

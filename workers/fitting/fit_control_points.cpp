@@ -134,6 +134,8 @@ struct Correspondences {
 struct Hints {
   std::vector<TriangleHit> on_surface;  // per target surface sample: hit on the refined surface
   std::vector<TriangleHit> on_target;   // per refined vertex: hit on the target
+  std::vector<SegmentHit> on_target_crease;  // per refined vertex: hit on the target's sharp edges
+  std::vector<SegmentHit> on_crease;    // per target crease sample: hit on the refined creases
 };
 
 Correspondences correspond(const Points& R, const Mesh& refined,
@@ -150,7 +152,11 @@ Correspondences correspond(const Points& R, const Mesh& refined,
     hints->on_surface.resize(samples.surface.size());
     hints->on_target.resize(static_cast<size_t>(R.rows()));
   }
-  SegmentIndex crease(R, refined_creases);
+  if (hints) {
+    hints->on_target_crease.resize(static_cast<size_t>(R.rows()));
+    hints->on_crease.resize(samples.crease.size());
+  }
+  SegmentIndex crease(R, refined_creases, /*eager_search_tree=*/false);
   std::vector<char> on_crease(R.rows(), 0);
   for (auto [a, b] : refined_creases) on_crease[a] = on_crease[b] = 1;
   if (!surf.empty())
@@ -175,7 +181,13 @@ Correspondences correspond(const Points& R, const Mesh& refined,
   if (!target_tris.empty())
     for (Eigen::Index v = 0; v < R.rows(); ++v) {
       if (with_creases && on_crease[v] && !target_creases.empty()) {
-        auto h = target_creases.closest(R.row(v).transpose());
+        SegmentHit h;
+        if (hints && hints->on_target_crease[v].segment >= 0)
+          h = target_creases.closest(R.row(v).transpose(),
+                                     SegmentHint{hints->on_target_crease[v].segment, hints->on_target_crease[v].point});
+        else
+          h = target_creases.closest(R.row(v).transpose());
+        if (hints) hints->on_target_crease[v] = h;
         c.add({{static_cast<int>(v), 1.0}}, h.point, o.crease_weight, h.distance, false);
       }
       TriangleHit h;
@@ -188,8 +200,17 @@ Correspondences correspond(const Points& R, const Mesh& refined,
       c.add({{static_cast<int>(v), 1.0}}, h.point, 1.0, h.distance, true);
     }
   if (with_creases && !crease.empty())
-    for (const auto& p : samples.crease) {
-      auto h = crease.closest(p);
+    for (size_t k = 0; k < samples.crease.size(); ++k) {
+      const auto& p = samples.crease[k];
+      SegmentHit h;
+      if (hints && hints->on_crease[k].segment >= 0) {
+        const auto& prev = hints->on_crease[k];
+        auto [a, b] = crease.segment(prev.segment);
+        h = crease.closest(p, SegmentHint{prev.segment, (1 - prev.t) * R.row(a).transpose() + prev.t * R.row(b).transpose()});
+      } else {
+        h = crease.closest(p);
+      }
+      if (hints) hints->on_crease[k] = h;
       auto [a, b] = crease.segment(h.segment);
       c.add({{a, 1 - h.t}, {b, h.t}}, p, o.crease_weight, h.distance, false);
     }
@@ -310,8 +331,20 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   out.control = control;
   out.control.points = X;
   Points R = op.S * X;
+  // The last iteration's answers start the final queries (every target vertex, not only the
+  // strided ones: each starts from the strided sample before it).
+  Hints final_hints;
+  if (!hints.on_surface.empty()) {
+    const int iter_vertices = static_cast<int>(iteration_samples.surface.size() - (samples.surface.size() - tg.vertices));
+    final_hints.on_surface.resize(samples.surface.size());
+    for (int v = 0; v < tg.vertices; ++v)
+      final_hints.on_surface[v] = hints.on_surface[static_cast<size_t>(static_cast<long long>(v) * iter_vertices / tg.vertices)];
+    std::copy(hints.on_surface.begin() + iter_vertices, hints.on_surface.end(),
+              final_hints.on_surface.begin() + tg.vertices);
+  }
+  final_hints.on_target = std::move(hints.on_target);
   auto c = correspond(R, op.refined, refined_tris, refined_creases, samples, target_tris,
-                      target_creases, o, false, nullptr);
+                      target_creases, o, false, &final_hints);
   out.stats = stats_of(c.surface_dist, tg.diagonal);
   // The first rows are the target vertices (sample_target puts them first).
   if (c.surface_dist.size() >= static_cast<size_t>(tg.vertices))
