@@ -190,9 +190,9 @@ class ModFeatureQuadricT : public OpenMesh::Decimater::ModBaseT<MeshT> {
 
 
 // OpenMesh's DecimaterT (same heap, same collapse order, same result), except that a vertex's
-// candidate collapses are ranked by the cost module first and only one that would beat the best
-// so far is checked for legality and by the binary modules (normal flip, aspect ratio). Those
-// checks were most of the decimation's time, spent on candidates that could not win anyway.
+// candidate collapses are ranked by the cost module first and checked for legality and by the
+// binary modules (normal flip, aspect ratio) cheapest first, stopping at the first that passes.
+// Those checks were most of the decimation's time, spent on candidates that could not win.
 template <class MeshT, class CostModule>
 class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
  public:
@@ -262,18 +262,27 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
   using Heap = OpenMesh::Utils::HeapT<VertexHandle, HeapInterface>;
 
   void heap_vertex(VertexHandle vh) {
+    // Candidates by cost, ties in ring order (DecimaterT keeps the first of equal costs): the
+    // first that is legal and passes the binary modules is DecimaterT's choice.
+    candidates_.clear();
+    for (auto h : mesh_.voh_range(vh)) {
+      const float cost = cost_->collapse_priority(CollapseInfo(mesh_, h));
+      if (cost >= 0.0f && cost < FLT_MAX) candidates_.push_back({cost, static_cast<int>(candidates_.size()), h});
+    }
+    std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
+      return a.cost < b.cost || (a.cost == b.cost && a.order < b.order);
+    });
     float best = FLT_MAX;
     HalfedgeHandle target;
-    for (auto h : mesh_.voh_range(vh)) {
-      CollapseInfo ci(mesh_, h);
-      // Base::collapse_priority is the cost module's value unless a binary module vetoes.
-      const float cost = cost_->collapse_priority(ci);
-      if (!(cost >= 0.0f && cost < best)) continue;
+    for (const auto& cand : candidates_) {
+      CollapseInfo ci(mesh_, cand.h);
       if (!this->is_collapse_legal(ci)) continue;
+      // Base::collapse_priority is the cost module's value unless a binary module vetoes.
       const float prio = this->collapse_priority(ci);
       if (prio >= 0.0f && prio < best) {
         best = prio;
-        target = h;
+        target = cand.h;
+        break;
       }
     }
     if (target.is_valid()) {
@@ -290,6 +299,12 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
     }
   }
 
+  struct Candidate {
+    float cost;
+    int order;
+    HalfedgeHandle h;
+  };
+  std::vector<Candidate> candidates_;
   MeshT& mesh_;
   CostModule* cost_ = nullptr;
   Heap* heap_ = nullptr;
