@@ -331,14 +331,17 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   out.control = control;
   out.control.points = X;
   Points R = op.S * X;
-  // The last iteration's answers start the final queries (every target vertex, not only the
-  // strided ones: each starts from the strided sample before it).
+  // The last iteration's answers start the final queries. Target vertices left out of the
+  // strided subset get none: a neighbour in index order may lie far away on the part, and a far
+  // hint costs more than the kd-tree's.
   Hints final_hints;
   if (!hints.on_surface.empty()) {
-    const int iter_vertices = static_cast<int>(iteration_samples.surface.size() - (samples.surface.size() - tg.vertices));
+    const long long nt = tg.vertices;
+    const long long iter_vertices =
+        static_cast<long long>(iteration_samples.surface.size() - (samples.surface.size() - tg.vertices));
     final_hints.on_surface.resize(samples.surface.size());
-    for (int v = 0; v < tg.vertices; ++v)
-      final_hints.on_surface[v] = hints.on_surface[static_cast<size_t>(static_cast<long long>(v) * iter_vertices / tg.vertices)];
+    for (long long k = 0; k < iter_vertices; ++k)
+      final_hints.on_surface[static_cast<size_t>(k * nt / iter_vertices)] = hints.on_surface[static_cast<size_t>(k)];
     std::copy(hints.on_surface.begin() + iter_vertices, hints.on_surface.end(),
               final_hints.on_surface.begin() + tg.vertices);
   }
