@@ -570,6 +570,11 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
       cj["copies"].push_back({{"copy_id", s.copy_id},
                               {"correlation", s.correlation},
                               {"p_value", s.corrected_p},
+                              {"compared", s.compared},
+                              {"binomial_neg_log10_p", s.binomial_neg_log10_p},
+                              {"calibrated_neg_log10_p", s.calibrated_neg_log10_p},
+                              {"null_mean", s.null_mean},
+                              {"null_sd", s.null_sd},
                               {"payload_matches", s.payload_matches},
                               {"bit_error_rate", s.bit_error_rate}});
       if (!best || s.corrected_p < best->corrected_p ||
@@ -588,6 +593,10 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
     d.correlation = best->correlation;
     d.p_value = best->corrected_p;
     details["best_neg_log10_corrected_p"] = std::max(0.0, best->neg_log10_p - std::log10(std::max(1, total)));
+    // Uncorrected, as computed: the verdict's p is the larger of the two, then Bonferroni.
+    details["best_binomial_p"] = best->binomial_p;
+    details["best_calibrated_p"] = best->calibrated_p;
+    details["best_null_sd"] = best->null_sd;
     details["resync_method"] = best_t->aligned.method;
     details["resync_residual"] = best_t->aligned.residual;
     d.resync_method = best_t->aligned.method;
@@ -622,6 +631,8 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
   if (d.p_value) result["p_value"] = *d.p_value;
   if (details.contains("best_neg_log10_corrected_p")) result["neg_log10_p"] = details["best_neg_log10_corrected_p"];
   if (d.correlation) result["correlation"] = *d.correlation;
+  for (const char* k : {"best_binomial_p", "best_calibrated_p", "best_null_sd"})
+    if (details.contains(k)) result[std::string(k).substr(5)] = details[k];
   if (!d.decoded_payload_hex.empty()) result["decoded_payload"] = d.decoded_payload_hex;
   if (best_t) {
     result["resync_method"] = best_t->aligned.method;

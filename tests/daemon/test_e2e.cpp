@@ -262,11 +262,22 @@ TEST_F(E2E, ProtectsTwoCustomersAndTracesTheLeak) {
   EXPECT_EQ(noisy["verdict"], "attributed") << noisy.dump();
   EXPECT_EQ(noisy["customer"], "alpha") << noisy.dump();
   EXPECT_LT(noisy["p_value"].get<double>(), 1e-9) << noisy.dump();
+  // Both p-values are reported; the verdict's is Bonferroni on the larger, so never below either.
+  for (const json* r : {&leak, &exact, &noisy}) {
+    ASSERT_TRUE(r->contains("binomial_p") && r->contains("calibrated_p") && r->contains("null_sd")) << r->dump();
+    EXPECT_LT((*r)["calibrated_p"].get<double>(), 1e-9) << r->dump();
+    EXPECT_GT((*r)["null_sd"].get<double>(), 0) << r->dump();
+    EXPECT_GE((*r)["p_value"].get<double>(), (*r)["binomial_p"].get<double>()) << r->dump();
+    EXPECT_GE((*r)["p_value"].get<double>(), (*r)["calibrated_p"].get<double>()) << r->dump();
+  }
   for (const char* innocent : {"original-abc7.stl", "innocent.off", "unrelated.stl"}) {
     json r = reason(drop / "done/detect" / innocent)["result"];
     std::cout << innocent << ": " << r.dump() << "\n";
     EXPECT_NE(r["verdict"], "attributed") << innocent << r.dump();
     EXPECT_FALSE(r.contains("customer")) << r.dump();
+    if (r.contains("calibrated_p")) {
+      EXPECT_GT(r["calibrated_p"].get<double>(), 1e-6) << innocent << r.dump();
+    }
   }
   EXPECT_EQ(reason(drop / "done/detect/original-abc7.stl")["result"]["verdict"], "no watermark found");
   // Each verdict is recorded with the resynchronisation that produced it.

@@ -16,6 +16,7 @@
 #include "jobs/protect.h"
 #include "meshio/read_mesh.h"
 #include "subdivision/subdivide.h"
+#include "watermark/null_calibration.h"
 
 namespace mm::jobs {
 namespace {
@@ -41,6 +42,26 @@ Mesh with_noise(Mesh m, double amplitude, unsigned seed) {
   for (Eigen::Index i = 0; i < m.points.rows(); ++i)
     for (int k = 0; k < 3; ++k) m.points(i, k) += u(g);
   return m;
+}
+
+// Re-tessellation no subdivision level matches: every face fanned into triangles, each triangle
+// split 1-to-3 at its centroid. Detection has to fit the surface.
+Mesh split_at_centroids(const Mesh& m) {
+  Mesh out;
+  std::vector<Eigen::RowVector3d> pts;
+  for (Eigen::Index i = 0; i < m.points.rows(); ++i) pts.push_back(m.points.row(i));
+  for (const auto& f : m.faces)
+    for (std::size_t k = 1; k + 1 < f.size(); ++k) {
+      const int a = f[0], b = f[k], c = f[k + 1];
+      const int centre = static_cast<int>(pts.size());
+      pts.push_back((m.points.row(a) + m.points.row(b) + m.points.row(c)) / 3.0);
+      out.faces.push_back({a, b, centre});
+      out.faces.push_back({b, c, centre});
+      out.faces.push_back({c, a, centre});
+    }
+  out.points.resize(static_cast<Eigen::Index>(pts.size()), 3);
+  for (std::size_t i = 0; i < pts.size(); ++i) out.points.row(static_cast<Eigen::Index>(i)) = pts[i];
+  return out;
 }
 
 // Shared by the suite: compressing fandisk and building its resync context cost seconds.
@@ -89,10 +110,16 @@ struct ProtectDetect : ::testing::Test {
     ASSERT_TRUE(v.attributed) << what << ": p " << v.best.corrected_p;
     EXPECT_EQ(v.best.copy_id, fx->copies[i].copy_id) << what;
     EXPECT_LT(v.best.corrected_p, 1e-9) << what;
+    EXPECT_LT(v.best.calibrated_p * 3, 1e-9) << what;
+    EXPECT_LE(v.best.binomial_p, v.best.p_value) << what;
+    EXPECT_LE(v.best.calibrated_p, v.best.p_value) << what;
     EXPECT_EQ(v.best.decoded_payload, fx->copies[i].payload) << what;
     for (const auto& s : v.scores)
       if (s.copy_id != fx->copies[i].copy_id) EXPECT_GT(s.corrected_p, 1e-6) << what;
-    std::cout << what << ": -log10 p " << v.best.neg_log10_p << " (" << m << ")\n";
+    std::cout << what << ": -log10 p " << v.best.neg_log10_p << " (" << m << "; binomial "
+              << v.best.binomial_neg_log10_p << ", calibrated " << v.best.calibrated_neg_log10_p << ", null sd "
+              << v.best.null_sd << " = " << v.best.null_sd * std::sqrt(double(v.best.compared)) << "/sqrt(m), m "
+              << v.best.compared << ")\n";
   }
 };
 
@@ -198,6 +225,101 @@ TEST_F(ProtectDetect, WrongPayloadOrWrongKeyIsNotAttributed) {
   std::vector<CopyCandidate> others = {fx->copies[0], fx->copies[1]};
   v = detect(c, nullptr, &others);
   EXPECT_FALSE(v.attributed);
+}
+
+}  // namespace
+}  // namespace mm::jobs
+
+namespace mm::jobs {
+namespace {
+
+void print_scores(const std::string& what, const std::string& method, const Verdict& v) {
+  for (const auto& s : v.scores)
+    std::cout << what << " (" << method << ") copy " << s.copy_id << ": corr " << s.correlation << " m "
+              << s.compared << " binomial p " << s.binomial_p << " calibrated p " << s.calibrated_p
+              << " null mean " << s.null_mean << " sd " << s.null_sd << " = "
+              << s.null_sd * std::sqrt(double(s.compared)) << "/sqrt(m)\n";
+}
+
+TEST_F(ProtectDetect, CalibratedPValueOfUnmarkedAndRetessellatedSurfaces) {
+  // Unmarked surfaces through the surface fit: the calibrated p says "chance", like the binomial.
+  Mesh unmarked = subdivide(fx->asset.control, 3);
+  for (unsigned seed : {11u, 12u, 13u}) {
+    std::string method;
+    Mesh suspect = split_at_centroids(with_noise(unmarked, 2e-4, seed));
+    Verdict v = detect(suspect, &method);
+    print_scores("unmarked re-tessellated, seed " + std::to_string(seed), method, v);
+    EXPECT_FALSE(v.attributed);
+    for (const auto& s : v.scores) {
+      EXPECT_GT(s.calibrated_p, 0.01) << seed;
+      EXPECT_GE(s.p_value, s.calibrated_p);
+      EXPECT_GE(s.p_value, s.binomial_p);
+    }
+  }
+  // A marked copy re-tessellated: reported, with both p-values, whatever the verdict.
+  std::string method;
+  Verdict v = detect(split_at_centroids(fx->files[1].decoded), &method);
+  print_scores("copy 101 re-tessellated", method, v);
+  // Same suspect, same numbers.
+  Verdict again = detect(split_at_centroids(fx->files[1].decoded));
+  ASSERT_EQ(again.scores.size(), v.scores.size());
+  for (std::size_t i = 0; i < v.scores.size(); ++i) {
+    EXPECT_EQ(again.scores[i].calibrated_p, v.scores[i].calibrated_p);
+    EXPECT_EQ(again.scores[i].null_sd, v.scores[i].null_sd);
+  }
+}
+
+}  // namespace
+}  // namespace mm::jobs
+
+namespace mm::jobs {
+namespace {
+
+// The null sequences are independent fair +-1 streams, so against ANY fixed sign sequence B''
+// -- independent errors or strongly correlated ones -- the null correlation has the spread of
+// the binomial model: 1/sqrt(m) with the message known, sqrt(1 - 2/pi)/sqrt(m) for the
+// majority-decoded statistic (sum over bits of |votes| / m). Correlated recovery errors do not
+// widen it; only a dependence between the suspect and the key stream could.
+TEST(NullCalibration, SpreadMatchesTheBinomialModelForIndependentAndCorrelatedSigns) {
+  const int l = 32, m = 2240;
+  std::mt19937 g(7);
+  std::vector<std::int8_t> independent(m), runs(m), constant(m, 1);
+  for (auto& s : independent) s = (g() & 1) ? 1 : -1;
+  for (int j = 0; j < m; ++j) runs[static_cast<std::size_t>(j)] = ((j / 40) % 3 == 0) ? -1 : 1;  // runs of 40
+  const std::vector<bool> message(l, false);
+  for (const auto* signs : {&independent, &runs, &constant}) {
+    NullCalibration known = calibrate_null(*signs, l, 0.0, &message);
+    NullCalibration majority = calibrate_null(*signs, l, 0.0);
+    std::cout << "null sd x sqrt(m): message known " << known.sd * std::sqrt(double(m)) << " (model 1), majority "
+              << majority.sd * std::sqrt(double(m)) << " (model " << std::sqrt(1 - 2 / M_PI) << "), means "
+              << known.mean << ", " << majority.mean << "\n";
+    // 256 samples estimate an sd to ~4.4 %; 15 % is over 3 standard errors.
+    EXPECT_NEAR(known.sd * std::sqrt(double(m)), 1.0, 0.15);
+    EXPECT_NEAR(majority.sd * std::sqrt(double(m)), std::sqrt(1 - 2 / M_PI), 0.15 * std::sqrt(1 - 2 / M_PI));
+    EXPECT_NEAR(known.mean, 0.0, 4.0 / std::sqrt(256.0 * m));
+  }
+  // Deterministic, and a mark far outside the null gets a tiny p that survives underflow.
+  NullCalibration a = calibrate_null(runs, l, 0.9), b = calibrate_null(runs, l, 0.9);
+  EXPECT_EQ(a.sd, b.sd);
+  EXPECT_EQ(a.p, b.p);
+  EXPECT_GT(a.neg_log10_p, 100);
+  EXPECT_GT(calibrate_null(runs, l, a.mean).p, 0.4);
+  // Nothing compared: nothing learned.
+  EXPECT_EQ(calibrate_null(std::vector<std::int8_t>(m, 0), l, 0.0).p, 1.0);
+}
+
+TEST(NullCalibration, NormalTailMatchesClosedFormsAndSurvivesUnderflow) {
+  double p = 0, q = 0;
+  normal_upper_tail(0, &p, &q);
+  EXPECT_DOUBLE_EQ(p, 0.5);
+  normal_upper_tail(3, &p, &q);
+  EXPECT_NEAR(p, 1.3498980316301e-3, 1e-15);
+  // z = 38: erfc is subnormal (~3e-316), so the asymptotic branch is taken; it must agree.
+  normal_upper_tail(38, &p, &q);
+  EXPECT_NEAR(q, -std::log10(0.5 * std::erfc(38 / std::sqrt(2.0))), 1e-4);
+  normal_upper_tail(40, &p, &q);  // erfc underflows to 0 here
+  EXPECT_GT(p, 0);
+  EXPECT_NEAR(q, 0.5 * 1600 / std::log(10.0) + std::log10(40 * std::sqrt(2 * M_PI)), 1e-3);
 }
 
 }  // namespace

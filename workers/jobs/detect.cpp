@@ -7,6 +7,7 @@
 
 #include "jobs/payload.h"
 #include "registration/nearest_neighbours.h"
+#include "watermark/null_calibration.h"
 
 namespace mm::jobs {
 
@@ -64,9 +65,19 @@ Verdict detect_copy(const PreparedAsset& asset, const Points& registered,
     CopyScore s;
     s.copy_id = c.copy_id;
     s.correlation = e.correlation;
-    s.p_value = e.p_value;
-    s.neg_log10_p = e.neg_log10_p;
-    s.corrected_p = std::min(1.0, e.p_value * tried);
+    s.compared = e.compared;
+    s.binomial_p = e.p_value;
+    s.binomial_neg_log10_p = e.neg_log10_p;
+    const NullCalibration cal = calibrate_null(e.signs, c.settings.message_bits, e.correlation);
+    s.calibrated_p = cal.p;
+    s.calibrated_neg_log10_p = cal.neg_log10_p;
+    s.null_mean = cal.mean;
+    s.null_sd = cal.sd;
+    // The more conservative of the two (compared in -log10, which survives underflow).
+    const bool binomial_bound = e.neg_log10_p <= cal.neg_log10_p;
+    s.p_value = binomial_bound ? e.p_value : cal.p;
+    s.neg_log10_p = binomial_bound ? e.neg_log10_p : cal.neg_log10_p;
+    s.corrected_p = std::min(1.0, s.p_value * tried);
     s.decoded_payload = bits_to_payload(e.message);
     s.payload_matches = s.decoded_payload == c.payload;
     std::vector<bool> expected = payload_to_bits(c.payload, c.settings.message_bits);

@@ -4,6 +4,11 @@
 // its p-value, Bonferroni-corrected for the number of copies tried, is below the threshold AND
 // the message decoded with that copy's key equals that copy's payload. An unmarked or foreign
 // mesh has no reason to pass either test, so it is never attributed.
+//
+// Each copy's p-value is the larger of two: the exact tail of extract() (the binomial model:
+// chance signs independent and fair) and an empirically calibrated one (calibrate_null(): the
+// same statistic against kNullSequences public sequences unrelated to any copy, upper normal tail
+// of (correlation - null mean) / null sd). Both are kept, so the evidence states which one bound.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -25,9 +30,13 @@ struct CopyCandidate {
 struct CopyScore {
   std::int64_t copy_id = 0;
   double correlation = 0;
-  double p_value = 1;    // raw
+  int compared = 0;      // coefficient signs compared (m)
+  double p_value = 1;    // raw: max(binomial_p, calibrated_p)
   double corrected_p = 1;  // min(1, p * copies tried)
   double neg_log10_p = 0;  // -log10 of the raw p-value, meaningful where p underflows to 0
+  double binomial_p = 1, binomial_neg_log10_p = 0;      // extract()'s exact tail
+  double calibrated_p = 1, calibrated_neg_log10_p = 0;  // the empirical-null normal tail
+  double null_mean = 0, null_sd = 0;  // of the correlation over the null sequences
   std::uint64_t decoded_payload = 0;
   bool payload_matches = false;
   double bit_error_rate = 0;

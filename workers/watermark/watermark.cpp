@@ -103,6 +103,7 @@ Extraction extract(const SpectralBasis& basis, const Points& original, const Poi
 
   Extraction out;
   out.repeat = stream.repeat;
+  out.signs.assign(stream.b.size(), 0);
   std::vector<int> votes(message_bits, 0), copies(message_bits, 0);
   for (int j = 0; j < static_cast<int>(stream.b.size()); ++j) {
     const double c = coefficient(basis, cs, j);
@@ -113,6 +114,7 @@ Extraction extract(const SpectralBasis& basis, const Points& original, const Poi
     const int sign_b = (dj > 0 ? 1 : -1) * (add || c > 0 ? 1 : -1);  // B''_j
     // `stream` is B for the all-zero message; a 1 bit inverts its copies (XOR in +-1 form), so
     // -B''_j stream_j is this copy's vote for message bit j mod l: +1 for 1, -1 for 0.
+    out.signs[static_cast<std::size_t>(j)] = static_cast<std::int8_t>(sign_b);
     const int vote = -sign_b * stream.b[j];
     const int bit = j % message_bits;
     votes[bit] += vote;

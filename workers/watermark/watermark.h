@@ -62,6 +62,7 @@ struct Extraction {
   bool message_known = false;    // whether B came from `expected` (else from the decoded message)
   double p_value = 1;            // P[chance agreement >= agreements] (see above); 1 if m = 0
   double neg_log10_p = 0;        // -log10 of that, still meaningful where p_value underflows
+  std::vector<std::int8_t> signs;  // B''_j per coefficient j < r*l: +1 / -1, 0 if not compared
 };
 
 // Non-blind extraction: `suspect` must already be resynchronised to the original's vertex order.
