@@ -93,6 +93,8 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
   fit.levels = o.levels;
   // The target's trees and samples are the same in every round.
   const FitTarget target(mesh, features, fit);
+  // Rounds that keep the importance and lower the vertex count continue the last decimation.
+  ControlDecimation decimation(mesh, features, seg);
 
   bool have = false, best_fits = false;
   FitResult best;
@@ -101,7 +103,7 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
   int failed_n = 0, fit_n = 0;
   for (int round = 0; round < o.max_rounds; ++round) {
     ++out.rounds;
-    auto control = build_control_polyhedron(mesh, features, seg, co);
+    auto control = decimation.build(co);
     // The decimation stops early when only corners and crease floors are left; far above the
     // budget the fit's refined mesh (4^levels times the control mesh) is the blow-up above.
     if (round == 0 && control.mesh.num_vertices() > 2 * o.max_vertices)

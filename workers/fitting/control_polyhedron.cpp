@@ -9,6 +9,7 @@
 #include <OpenMesh/Tools/Decimater/ModBaseT.hh>
 #include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
 #include <algorithm>
+#include <memory>
 #include <cfloat>
 #include <set>
 #include <stdexcept>
@@ -212,23 +213,26 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
     mesh_.remove_property(heap_position_);
   }
 
-  // Decimates to `n_vertices` (counting deleted ones out) with the cost module `cost`, which
-  // must be the one added as the non-binary module.
+  // Decimates until `n_vertices` are left (of all vertices ever added, like DecimaterT) with the
+  // cost module `cost`, which must be the one added as the non-binary module. A later call with
+  // a smaller count continues the same collapse sequence (the heap is kept).
   size_t decimate_to(size_t n_vertices, CostModule& cost) {
     if (!this->is_initialized() || n_vertices >= mesh_.n_vertices()) return 0;
     const size_t wanted = mesh_.n_vertices() - n_vertices;
     cost_ = &cost;
-    Heap heap(HeapInterface{mesh_, priority_, heap_position_});
-    heap_ = &heap;
-    heap.reserve(mesh_.n_vertices());
-    for (auto v : mesh_.vertices()) {
-      heap.reset_heap_position(v);
-      if (!mesh_.status(v).deleted()) heap_vertex(v);
+    if (!heap_) {
+      heap_ = std::make_unique<Heap>(HeapInterface{mesh_, priority_, heap_position_});
+      heap_->reserve(mesh_.n_vertices());
+      for (auto v : mesh_.vertices()) {
+        heap_->reset_heap_position(v);
+        if (!mesh_.status(v).deleted()) heap_vertex(v);
+      }
     }
+    Heap& heap = *heap_;
     const bool update_normals = mesh_.has_face_normals();
     std::vector<VertexHandle> support;
-    size_t done = 0;
-    while (!heap.empty() && done < wanted) {
+    const size_t before = collapsed_;
+    while (!heap.empty() && collapsed_ < wanted) {
       const VertexHandle vp = heap.front();
       const HalfedgeHandle v0v1 = mesh_.property(collapse_target_, vp);
       heap.pop_front();
@@ -238,15 +242,14 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
       for (auto w : mesh_.vv_range(ci.v0)) support.push_back(w);
       this->preprocess_collapse(ci);
       mesh_.collapse(v0v1);
-      ++done;
+      ++collapsed_;
       if (update_normals)
         for (auto f : mesh_.vf_range(ci.v1))
           if (!mesh_.status(f).deleted()) mesh_.set_normal(f, mesh_.calc_face_normal(f));
       this->postprocess_collapse(ci);
       for (auto w : support) heap_vertex(w);
     }
-    heap_ = nullptr;
-    return done;
+    return collapsed_ - before;
   }
 
  private:
@@ -307,25 +310,72 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
   std::vector<Candidate> candidates_;
   MeshT& mesh_;
   CostModule* cost_ = nullptr;
-  Heap* heap_ = nullptr;
+  std::unique_ptr<Heap> heap_;
+  size_t collapsed_ = 0;
   OpenMesh::VPropHandleT<HalfedgeHandle> collapse_target_;
   OpenMesh::VPropHandleT<float> priority_;
   OpenMesh::VPropHandleT<int> heap_position_;
 };
+
+using Decimater = LazyDecimaterT<OMesh, ModFeatureQuadricT<OMesh>>;
+
+}  // namespace
+
+// One decimation of the input in progress: the mesh, its flags and the decimater with its heap.
+struct ControlDecimation::Impl {
+  OMesh om;
+  std::vector<int> source;
+  std::vector<char> is_corner;
+  int split_vertices = 0;
+  std::unique_ptr<Decimater> dec;
+  ModFeatureQuadricT<OMesh>::Handle hq;
+  OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle hn;
+  OpenMesh::Decimater::ModAspectRatioT<OMesh>::Handle ha;
+  ControlOptions options;  // of the decimation so far (target_vertices: where it stopped)
+};
+
+ControlDecimation::ControlDecimation(const Mesh& mesh, const Features& features,
+                                     const Segmentation& segmentation)
+    : mesh_(mesh), features_(features), segmentation_(segmentation) {}
+ControlDecimation::~ControlDecimation() = default;
+
+namespace {
+bool same_except_target(const ControlOptions& a, const ControlOptions& b) {
+  return a.min_open_chain_interior == b.min_open_chain_interior && a.min_closed_loop == b.min_closed_loop &&
+         a.max_normal_deviation_degrees == b.max_normal_deviation_degrees &&
+         a.max_aspect_ratio == b.max_aspect_ratio && a.importance == b.importance;
+}
 }  // namespace
 
 ControlPolyhedron build_control_polyhedron(const Mesh& mesh, const Features& features,
                                            const Segmentation& segmentation,
                                            const ControlOptions& options) {
+  return ControlDecimation(mesh, features, segmentation).build(options);
+}
+
+ControlPolyhedron ControlDecimation::build(const ControlOptions& options) {
+  const Mesh& mesh = mesh_;
+  const Features& features = features_;
+  const Segmentation& segmentation = segmentation_;
   const int n = mesh.num_vertices();
-  OMesh om;
+  const size_t target = static_cast<size_t>(std::max(options.target_vertices, 4));
+  // A greedy decimation stopped at N vertices is the start of the same decimation to fewer:
+  // with the same costs, continue it instead of starting again from the input.
+  if (impl_ && same_except_target(impl_->options, options) &&
+      target <= static_cast<size_t>(std::max(impl_->options.target_vertices, 4))) {
+    impl_->dec->decimate_to(target, impl_->dec->module(impl_->hq));
+    impl_->options.target_vertices = options.target_vertices;
+    return extract();
+  }
+  impl_.reset();
+  impl_ = std::make_unique<Impl>();
+  OMesh& om = impl_->om;
+  std::vector<int>& source = impl_->source;
   std::vector<OMesh::VertexHandle> vh(n);
-  std::vector<int> source;
   for (int i = 0; i < n; ++i) {
     vh[i] = om.add_vertex(OpenMesh::Vec3d(mesh.points(i, 0), mesh.points(i, 1), mesh.points(i, 2)));
     source.push_back(i);
   }
-  ControlPolyhedron out;
   auto add_tri = [&](int a, int b, int c) {
     if (a == b || b == c || a == c) return;
     if (om.add_face(vh[a], vh[b], vh[c]).is_valid()) return;
@@ -334,17 +384,21 @@ ControlPolyhedron build_control_polyhedron(const Mesh& mesh, const Features& fea
     for (int i : {a, b, c}) {
       dup.push_back(om.add_vertex(om.point(vh[i])));
       source.push_back(i);
-      ++out.split_vertices;
+      ++impl_->split_vertices;
     }
     om.add_face(dup);
   };
   for (const auto& f : mesh.faces)
     for (size_t k = 1; k + 1 < f.size(); ++k) add_tri(f[0], f[k], f[k + 1]);
-  if (om.n_faces() == 0) throw std::invalid_argument("mesh has no usable faces");
+  if (om.n_faces() == 0) {
+    impl_.reset();
+    throw std::invalid_argument("mesh has no usable faces");
+  }
 
   // Flags: sharp edges and their vertices are features; corners are locked.
   std::set<std::pair<int, int>> sharp(features.sharp_edges.begin(), features.sharp_edges.end());
-  std::vector<char> is_corner(om.n_vertices(), 0);
+  std::vector<char>& is_corner = impl_->is_corner;
+  is_corner.assign(om.n_vertices(), 0);
   for (int c : features.corners) is_corner[c] = 1;
   for (auto e : om.edges()) {
     int a = source[om.from_vertex_handle(om.halfedge_handle(e, 0)).idx()];
@@ -369,32 +423,41 @@ ControlPolyhedron build_control_polyhedron(const Mesh& mesh, const Features& fea
       if (!is_corner[line[k]]) chain_of[line[k]] = id;
   }
 
-  {
-    using Decimater = LazyDecimaterT<OMesh, ModFeatureQuadricT<OMesh>>;
-    Decimater dec(om);
-    typename ModFeatureQuadricT<OMesh>::Handle hq;
-    OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle hn;
-    OpenMesh::Decimater::ModAspectRatioT<OMesh>::Handle ha;
-    dec.add(hq);
-    dec.add(hn);
-    dec.module(hn).set_max_normal_deviation(options.max_normal_deviation_degrees);
-    if (options.max_aspect_ratio > 0) {
-      dec.add(ha);
-      dec.module(ha).set_aspect_ratio(static_cast<float>(options.max_aspect_ratio));
-    }
-    if (!dec.initialize()) throw std::logic_error("decimater modules failed to initialise");
-    dec.module(hq).set_chains(chain_of, chain_min);
-    if (!options.importance.empty()) {
-      if (static_cast<int>(options.importance.size()) != n)
-        throw std::invalid_argument("importance must have one value per vertex");
-      std::vector<double> imp(om.n_vertices());
-      for (size_t v = 0; v < imp.size(); ++v) imp[v] = std::max(options.importance[source[v]], 1e-9);
-      dec.module(hq).set_importance(imp);
-    }
-    om.update_face_normals();
-    dec.decimate_to(static_cast<size_t>(std::max(options.target_vertices, 4)), dec.module(hq));
+  impl_->dec = std::make_unique<Decimater>(om);
+  Decimater& dec = *impl_->dec;
+  auto& hq = impl_->hq;
+  auto& hn = impl_->hn;
+  auto& ha = impl_->ha;
+  dec.add(hq);
+  dec.add(hn);
+  dec.module(hn).set_max_normal_deviation(options.max_normal_deviation_degrees);
+  if (options.max_aspect_ratio > 0) {
+    dec.add(ha);
+    dec.module(ha).set_aspect_ratio(static_cast<float>(options.max_aspect_ratio));
   }
+  if (!dec.initialize()) throw std::logic_error("decimater modules failed to initialise");
+  dec.module(hq).set_chains(chain_of, chain_min);
+  if (!options.importance.empty()) {
+    if (static_cast<int>(options.importance.size()) != n) {
+      impl_.reset();
+      throw std::invalid_argument("importance must have one value per vertex");
+    }
+    std::vector<double> imp(om.n_vertices());
+    for (size_t v = 0; v < imp.size(); ++v) imp[v] = std::max(options.importance[source[v]], 1e-9);
+    dec.module(hq).set_importance(imp);
+  }
+  om.update_face_normals();
+  dec.decimate_to(target, dec.module(hq));
+  impl_->options = options;
+  return extract();
+}
 
+ControlPolyhedron ControlDecimation::extract() const {
+  const OMesh& om = impl_->om;
+  const std::vector<int>& source = impl_->source;
+  const std::vector<char>& is_corner = impl_->is_corner;
+  ControlPolyhedron out;
+  out.split_vertices = impl_->split_vertices;
   // Collect survivors in input order (deterministic, independent of OpenMesh internals).
   std::vector<int> new_index(om.n_vertices(), -1);
   for (auto v : om.vertices())

@@ -4,6 +4,7 @@
 // crease, and every crease polyline keeps enough vertices to stay a curve. The surviving sharp
 // edges become the infinitely sharp creases and the corners the corner tags of the result.
 #pragma once
+#include <memory>
 #include <vector>
 
 #include "fitting/segmentation.h"
@@ -37,5 +38,27 @@ struct ControlPolyhedron {
 ControlPolyhedron build_control_polyhedron(const Mesh& mesh, const Features& features,
                                            const Segmentation& segmentation,
                                            const ControlOptions& options);
+
+// The same for a sequence of calls on one mesh (compress()'s rounds). A greedy decimation
+// stopped at N vertices is the start of the same decimation to fewer, so a call whose options
+// equal the previous call's but for a target not larger continues that decimation instead of
+// starting again from the input: the same result for less work. `mesh`, `features` and
+// `segmentation` must outlive this object.
+class ControlDecimation {
+ public:
+  ControlDecimation(const Mesh& mesh, const Features& features, const Segmentation& segmentation);
+  ~ControlDecimation();
+  ControlDecimation(const ControlDecimation&) = delete;
+  ControlDecimation& operator=(const ControlDecimation&) = delete;
+  ControlPolyhedron build(const ControlOptions& options);
+
+ private:
+  ControlPolyhedron extract() const;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  const Mesh& mesh_;
+  const Features& features_;
+  const Segmentation& segmentation_;
+};
 
 }  // namespace mm
