@@ -31,7 +31,9 @@ struct CompressResult {
 };
 
 // Throws InputError(source, reason) for meshes that cannot be compressed (empty, no faces,
-// degenerate bounding box, non-finite coordinates, out-of-range indices).
+// degenerate bounding box, non-finite coordinates, out-of-range indices) and for meshes with no
+// compact control polyhedron: more sharp-feature corners than max_vertices, or a first control
+// mesh above twice max_vertices (checked before any fitting).
 CompressResult compress(const Mesh& mesh, const CompressOptions& options = {},
                         const std::string& source = "mesh");
 
