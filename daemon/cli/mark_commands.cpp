@@ -346,6 +346,7 @@ void add_extract_command(CLI::App& app) {
           {"residual_rms", rs.residual_rms},
           {"matched_fraction", rs.matched_fraction},
           {"order_recovered", rs.order_recovered},
+          {"resubdivided", rs.resubdivided},
           {"aligned", aligned},
           {"scale", rs.to_control_frame.scale},
           {"mark_rms", mark}}},
@@ -379,6 +380,7 @@ void add_extract_command(CLI::App& app) {
     o << "correlation: " << ex.correlation << " (" << ex.agreements << " of " << ex.compared << " signs agree)\n";
     o << "resync: " << rs.method;
     if (rs.method == "subdivided") o << " level " << rs.level;
+    if (rs.resubdivided) o << " (level " << rs.level - 1 << " refined once more without crease tags)";
     o << (aligned ? ", similarity fitted" : ", in the original's frame") << ", residual " << rs.residual_rms
       << " of the diagonal\n";
     std::cout << o.str();

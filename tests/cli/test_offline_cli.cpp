@@ -233,6 +233,15 @@ TEST(CliMark, StreamOriginalStreamCopyDecodedAndNoisySuspects) {
   EXPECT_TRUE(stl["resync"]["order_recovered"].get<bool>());
   EXPECT_LT(stl["p_value"].get<double>(), 1e-9) << stl.dump();
   EXPECT_EQ(stl["message"]["text"], "bob");
+  // Decoded at level 2 and subdivided once more by the leaker: the file has no crease tags, so
+  // the last step is smooth everywhere (docs/registration.md, re-subdivided copies).
+  ASSERT_EQ(meshmark(s, {"decompress", b, s / "bob2.off", "--level", "2"}).code, 0);
+  ASSERT_EQ(meshmark(s, {"attack", "subdivide", s / "bob2.off", s / "bob2s.off", "--levels", "1"}).code, 0);
+  const json resub = extract_json(s, o.original, s / "bob2s.off", o.bob, b + ".mmrec.json");
+  EXPECT_EQ(resub["resync"]["level"], 3);
+  EXPECT_TRUE(resub["resync"]["resubdivided"].get<bool>()) << resub.dump();
+  EXPECT_LT(resub["p_value"].get<double>(), 1e-30) << resub.dump();
+  EXPECT_EQ(resub["message"]["text"], "bob");
   ASSERT_EQ(meshmark(s, {"attack", "noise", s / "bob3.off", s / "leak.off", "-A", "0.0005", "--seed", "7"}).code, 0);
   const json leak_bob = extract_json(s, o.original, s / "leak.off", o.bob, b + ".mmrec.json");
   EXPECT_LT(leak_bob["p_value"].get<double>(), 1e-9) << leak_bob.dump();

@@ -3,11 +3,14 @@
 // bench_registration [--benchmark_filter=...] (Release build, shared meshes beside the repo).
 #include <benchmark/benchmark.h>
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <numeric>
 #include <random>
 
 #include "common/shuffled_mesh.h"
+#include "fitting/sharp_features.h"
 #include "meshio/normalize.h"
 #include "meshio/read_mesh.h"
 #include "registration/remesh.h"
@@ -33,13 +36,41 @@ const ResyncContext& context() {
   return ctx;
 }
 
+// Heap in use while one context of `levels` is alive, in MB (glibc's count; the rest of the
+// process, meshes and the static contexts, subtracted).
+double context_heap_mb(const Mesh& control, int levels) {
+  const double before = static_cast<double>(mallinfo2().uordblks);
+  const ResyncContext ctx(control, levels);
+  return (static_cast<double>(mallinfo2().uordblks) - before) / 1e6;
+}
+
 void BM_Context(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(ResyncContext(control(), static_cast<int>(state.range(0))));
   state.counters["control_vertices"] = control().num_vertices();
+  state.counters["heap_MB"] = context_heap_mb(control(), static_cast<int>(state.range(0)));
 }
 
-void run(benchmark::State& state, const Mesh& suspect) {
-  const auto& ctx = context();
+// The same polyhedron with its sharp edges tagged, as compress() makes them: the context then
+// also factorises the re-subdivided hypothesis (level L-1, then one untagged step) per level.
+const Mesh& creased_control() {
+  static const Mesh m = [] {
+    Mesh c = control();
+    const Features f = detect_features(c);
+    c.creases = f.sharp_edges;
+    c.corners = f.corners;
+    return c;
+  }();
+  return m;
+}
+
+void BM_ContextCreased(benchmark::State& state) {
+  for (auto _ : state)
+    benchmark::DoNotOptimize(ResyncContext(creased_control(), static_cast<int>(state.range(0))));
+  state.counters["creases"] = static_cast<double>(creased_control().creases.size());
+  state.counters["heap_MB"] = context_heap_mb(creased_control(), static_cast<int>(state.range(0)));
+}
+
+void run(benchmark::State& state, const Mesh& suspect, const ResyncContext& ctx = context()) {
   std::string method;
   for (auto _ : state) method = resynchronize(ctx, suspect).method;
   state.SetLabel(method);
@@ -62,9 +93,23 @@ void BM_SurfaceFitDecimated(benchmark::State& state) {
   run(state, test::decimate(subdivide(control(), 3), static_cast<int>(state.range(0))));
 }
 
+// A decoded level-2 file (no tags) subdivided once more: in its own numbering, and shuffled.
+void BM_Resubdivided(benchmark::State& state) {
+  static const ResyncContext ctx(creased_control(), 3);
+  Mesh decoded = subdivide(creased_control(), 2);
+  decoded.creases.clear();
+  decoded.corners.clear();
+  Mesh s = subdivide(decoded, 1);
+  if (state.range(0) != 0) s = shuffled(s, 3);
+  run(state, s, ctx);
+  state.counters["shuffled"] = static_cast<double>(state.range(0));
+}
+
 }  // namespace
 
 BENCHMARK(BM_Context)->Arg(3)->Arg(4)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ContextCreased)->Arg(3)->Arg(4)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Resubdivided)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Polyhedron)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SubdividedInOrder)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SubdividedShuffled)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond);

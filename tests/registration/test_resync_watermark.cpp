@@ -17,6 +17,8 @@
 #include "common/temp_dir.h"
 #include "meshio/normalize.h"
 #include "meshio/read_mesh.h"
+#include "common/shuffled_mesh.h"
+#include "fitting/sharp_features.h"
 #include "registration/remesh.h"
 #include "registration/resynchronize.h"
 #include "subdivision/decompress.h"
@@ -108,6 +110,100 @@ TEST(ResyncWatermark, SubdividedNoisyCopyIsDetected) {
   report("unmarked, subdivided 3, noise", r, y);
   EXPECT_GT(y.p_value, 0.01);
   EXPECT_LT(std::abs(y.correlation), 0.1);
+}
+
+TEST(ResyncWatermark, ResubdividedDecodedCopyIsDetected) {
+  MM_REQUIRE_SHARED_MESHES();
+  ASSERT_GE(sodium_init(), 0);
+  const Fixture& f = fixture();
+  // fandisk_quads with its sharp edges tagged, as compress() makes control polyhedra (the plain
+  // file has none, and then both hypotheses are the same operator). Tags do not change K.
+  Mesh creased = f.control;
+  const Features features = detect_features(creased);
+  creased.creases = features.sharp_edges;
+  creased.corners = features.corners;
+  ASSERT_FALSE(creased.creases.empty());
+  const ResyncContext context(creased, 3);
+  Mesh marked = creased;
+  marked.points = f.marked.points;
+  auto detect_creased = [&](const Mesh& suspect, const ResyncOptions& o, Resynchronized* r) {
+    *r = resynchronize(context, suspect, o);
+    return extract(f.basis, f.control.points, r->points, kBits, f.key, f.nonce, f.params, &f.message);
+  };
+
+  // A leaker subdivides the decoded level-2 copy once more. The file has no crease tags, so the
+  // step is the plain smooth scheme; the result has the level-3 vertex count and faces, its edge
+  // points numbered by the decoded file's own edges.
+  Mesh decoded = subdivide(marked, 2);
+  decoded.creases.clear();
+  decoded.corners.clear();
+  const Mesh suspect = subdivide(decoded, 1);
+  ASSERT_EQ(suspect.num_vertices(), context.refined_points(3).rows());
+
+  ResyncOptions creased_only;
+  creased_only.consider_resubdivision = false;
+  Resynchronized before, r;
+  const Extraction x0 = detect_creased(suspect, creased_only, &before);
+  report("resubdivided 2+1, creased S_3 only", before, x0);
+  const Extraction x = detect_creased(suspect, {}, &r);
+  report("resubdivided 2+1", r, x);
+  EXPECT_FALSE(before.resubdivided);
+  EXPECT_EQ(r.method, "subdivided");
+  EXPECT_EQ(r.level, 3);
+  EXPECT_TRUE(r.resubdivided);
+  EXPECT_EQ(r.matched_fraction, 1.0);
+  EXPECT_LT(r.residual_rms, 1e-12);
+  EXPECT_GT(before.residual_rms, 1e3 * r.residual_rms);
+  EXPECT_GT(x.correlation, 0.9);
+  EXPECT_LT(x.p_value, 1e-100);
+  EXPECT_EQ(x.message, f.message);
+  EXPECT_GT(x.correlation, x0.correlation);
+
+  // In the known frame the marked control points come back exactly.
+  ResyncOptions known_frame;
+  known_frame.align = false;
+  const Resynchronized exact = resynchronize(context, suspect, known_frame);
+  EXPECT_TRUE(exact.resubdivided);
+  EXPECT_LT((exact.points - marked.points).rowwise().norm().maxCoeff(), 1e-11);
+
+  // The ordinary decoded copy at level 3 keeps the creased hypothesis, in order and as an STL
+  // would number it (vertices shuffled).
+  const Mesh level3 = subdivide(marked, 3);
+  const Resynchronized plain = resynchronize(context, level3, known_frame);
+  EXPECT_EQ(plain.level, 3);
+  EXPECT_FALSE(plain.resubdivided);
+  EXPECT_LT((plain.points - marked.points).rowwise().norm().maxCoeff(), 1e-11);
+  Resynchronized lost;
+  const Extraction xl = detect_creased(test::shuffled(level3, 5), {}, &lost);
+  report("shuffled subdivided 3 (creased)", lost, xl);
+  EXPECT_TRUE(lost.order_recovered);
+  EXPECT_FALSE(lost.resubdivided);
+  EXPECT_GT(xl.correlation, 0.9);
+
+  // The leak saved as an STL (numbering lost): the order-free path weighs both hypotheses too.
+  Resynchronized stl;
+  const Extraction xs = detect_creased(test::shuffled(suspect, 5), {}, &stl);
+  report("shuffled resubdivided 2+1", stl, xs);
+  EXPECT_TRUE(stl.order_recovered);
+  EXPECT_TRUE(stl.resubdivided);
+  EXPECT_GT(xs.correlation, 0.9);
+  Resynchronized stl_before;
+  const Extraction xs0 = detect_creased(test::shuffled(suspect, 5), creased_only, &stl_before);
+  report("shuffled resubdivided, creased only", stl_before, xs0);
+  EXPECT_GT(xs.correlation, xs0.correlation);
+
+  // With noise on the leak (as in SubdividedNoisyCopyIsDetected) the smooth hypothesis still
+  // explains it better: the creased one adds its bias near every crease to the noise.
+  Mesh noisy = suspect;
+  add_noise(noisy, 0.0005, 1);
+  Resynchronized n0, n;
+  const Extraction xn0 = detect_creased(noisy, creased_only, &n0);
+  report("resubdivided 2+1, noise, creased only", n0, xn0);
+  const Extraction xn = detect_creased(noisy, {}, &n);
+  report("resubdivided 2+1, noise 0.0005", n, xn);
+  EXPECT_TRUE(n.resubdivided);
+  EXPECT_GT(xn.correlation, 0.25);
+  EXPECT_LT(xn.p_value, 1e-30);
 }
 
 TEST(ResyncWatermark, StlRoundTripLosesOrderNotTheMark) {

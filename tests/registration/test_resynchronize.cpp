@@ -56,6 +56,7 @@ TEST(Resync, SubdividedCopiesGiveTheControlPointsBack) {
     EXPECT_EQ(r.method, "subdivided");
     EXPECT_EQ(r.level, level);
     EXPECT_FALSE(r.order_recovered);
+    EXPECT_FALSE(r.resubdivided) << "level " << level;
     EXPECT_LT(max_error(r.points, ctx.control().points), 1e-11) << "level " << level;
     EXPECT_LT(r.residual_rms, 1e-12);
   }

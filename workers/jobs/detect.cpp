@@ -21,7 +21,8 @@ ResyncContext make_resync_context(const PreparedAsset& asset) {
 Resynchronized resynchronize_suspect(const ResyncContext& context, const Mesh& suspect,
                                      const ResyncOptions& options) {
   Resynchronized r = resynchronize(context, suspect, options);
-  if (r.method != "subdivided" || !r.order_recovered || r.level < 1) return r;
+  // A re-subdivided copy was solved with its own operator; the pass below knows only S_L.
+  if (r.method != "subdivided" || !r.order_recovered || r.level < 1 || r.resubdivided) return r;
   const SparseOperator& S = context.subdivision(r.level).S;
   const Points moved = r.to_control_frame.apply(suspect.points);
   const PointGrid grid(moved);

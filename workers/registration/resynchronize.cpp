@@ -73,6 +73,14 @@ struct LevelData {
   SubdivisionOperator op;  // level 0: the identity on the control
   Points points;           // original refined positions
   Eigen::SimplicialLDLT<SpMat> normal;  // S^T S (levels >= 1)
+  // Re-subdivided leak (levels >= 1, only when the level below carries creases or corners): the
+  // level L-1 original refined once more by the plain scheme, as subdivide() does on a decoded
+  // file, which carries no tags: T = smooth_step * S_{L-1}. Same topology and numbering as level
+  // L, different rows near creases. T itself is never stored (at L = 4 it is as large as S_4).
+  bool has_smooth = false;
+  SparseOperator smooth_step;                // level L-1 -> L, creases and corners ignored
+  std::vector<int> smooth_order;  // refined vertex in a file's one-step numbering -> level-L index
+  Eigen::SimplicialLDLT<SpMat> smooth_normal;  // T^T T
   std::unique_ptr<PointGrid> grid;
   std::vector<int> face_offsets, face_list;  // vertex -> incident refined faces
 };
@@ -110,6 +118,55 @@ ResyncContext::ResyncContext(const Mesh& control, int max_level, int fit_level) 
         throw InputError("control polyhedron", "subdivision normal equations are singular at level " + std::to_string(l));
     }
     d->grid = std::make_unique<PointGrid>(d->points);
+    if (l > 0) {
+      const LevelData& below = *m.levels[static_cast<size_t>(l - 1)];
+      Mesh untagged = below.op.refined;
+      if (!untagged.creases.empty() || !untagged.corners.empty()) {
+        // One step from the level L-1 mesh as a file numbers its edge points in that file's edge
+        // order, not as the level-L refinement does. The tagged step in that numbering
+        // reproduces the level-L points, which gives the permutation to the level-L numbering.
+        untagged.points = below.points;
+        const SparseOperator tagged_step = build_subdivision(untagged, 1).S;
+        untagged.creases.clear();
+        untagged.corners.clear();
+        const SparseOperator U = build_subdivision(untagged, 1).S;
+        const Points same = tagged_step * below.points;
+        const int nr = static_cast<int>(d->points.rows());
+        std::vector<int> order(static_cast<size_t>(nr), -1);
+        std::vector<char> taken(static_cast<size_t>(nr), 0);
+        bool bijective = same.rows() == nr;
+        const double tolerance = 1e-18 * m.diagonal * m.diagonal;
+        for (int j = 0; j < nr && bijective; ++j) {
+          double d2 = 0;
+          const int k = d->grid->nearest(same.row(j).transpose(), &d2);
+          bijective = k >= 0 && d2 <= tolerance && !taken[static_cast<size_t>(k)];
+          if (bijective) order[static_cast<size_t>(j)] = k, taken[static_cast<size_t>(k)] = 1;
+        }
+        if (bijective) {
+          std::vector<Trip> t;
+          t.reserve(static_cast<size_t>(U.nonZeros()));
+          for (int j = 0; j < nr; ++j)
+            for (SparseOperator::InnerIterator it(U, j); it; ++it)
+              t.emplace_back(order[static_cast<size_t>(j)], static_cast<int>(it.col()), it.value());
+          d->smooth_step.resize(nr, U.cols());
+          d->smooth_step.setFromTriplets(t.begin(), t.end());
+          d->smooth_order = std::move(order);
+          // T^T T = S_{L-1}^T (U^T U) S_{L-1}: formed at level L-1's size, never T (at L = 4 as
+          // large as S_4), and in S_{L-1}'s own row-major storage, which saves two copies of it.
+          const SparseOperator UtU = SparseOperator(d->smooth_step.transpose()) * d->smooth_step;
+          SpMat N;
+          if (l == 1) {
+            N = UtU;
+          } else {
+            const SparseOperator G = UtU * below.op.S;
+            N = below.op.S.transpose() * G;
+          }
+          d->smooth_normal.compute(N);
+          d->has_smooth = d->smooth_normal.info() == Eigen::Success;
+        }
+        if (!d->has_smooth) d->smooth_step = SparseOperator(), d->smooth_order.clear();
+      }
+    }
     const int nv = static_cast<int>(d->points.rows());
     d->face_offsets.assign(static_cast<size_t>(nv) + 1, 0);
     for (const auto& f : d->op.refined.faces)
@@ -167,15 +224,51 @@ Points solve_level(const LevelData& level, int l, const Points& p) {
   return x;
 }
 
-// The same for a subset of refined rows (order-free matching that missed some vertices).
-Points solve_rows(const LevelData& level, const std::vector<int>& rows, const Points& p,
-                  const Points& prior) {
-  std::vector<Trip> t;
-  for (size_t r = 0; r < rows.size(); ++r)
-    for (SparseOperator::InnerIterator it(level.op.S, rows[r]); it; ++it)
-      t.emplace_back(static_cast<int>(r), static_cast<int>(it.col()), it.value());
-  SpMat A(static_cast<Eigen::Index>(rows.size()), level.op.S.cols());
-  A.setFromTriplets(t.begin(), t.end());
+// The re-subdivided hypothesis: min |T x - p| with T = smooth_step * S_{L-1}.
+Points solve_smooth(const LevelData& below, const LevelData& level, int l, const Points& p) {
+  const Eigen::MatrixXd Utp = SpMat(level.smooth_step.transpose()) * p;
+  const Eigen::MatrixXd rhs = l == 1 ? Utp : Eigen::MatrixXd(SpMat(below.op.S.transpose()) * Utp);
+  Points x = level.smooth_normal.solve(rhs);
+  return x;
+}
+
+Points apply_smooth(const LevelData& below, const LevelData& level, int l, const Points& x) {
+  const Points coarse = l == 1 ? x : apply_subdivision(below.op, x);
+  Points out = level.smooth_step * coarse;
+  return out;
+}
+
+// Which operator explains the suspect's refined vertices: the original's S_L, or (resubdivided)
+// T = smooth_step * S_{L-1}.
+struct Hypothesis {
+  const LevelData* level;
+  const LevelData* below;  // level L-1 (resubdivided only)
+  int l;
+  bool resubdivided;
+
+  Points apply(const Points& x) const {
+    if (l == 0) return x;
+    return resubdivided ? apply_smooth(*below, *level, l, x) : apply_subdivision(level->op, x);
+  }
+  Points solve(const Points& p) const {
+    return resubdivided ? solve_smooth(*below, *level, l, p) : solve_level(*level, l, p);
+  }
+  // The operator's rows `rows` (refined vertices) as a matrix over the control points.
+  SpMat rows_of(const std::vector<int>& rows) const {
+    const SparseOperator& R = resubdivided ? level->smooth_step : level->op.S;
+    std::vector<Trip> t;
+    for (size_t r = 0; r < rows.size(); ++r)
+      for (SparseOperator::InnerIterator it(R, rows[r]); it; ++it)
+        t.emplace_back(static_cast<int>(r), static_cast<int>(it.col()), it.value());
+    SpMat A(static_cast<Eigen::Index>(rows.size()), R.cols());
+    A.setFromTriplets(t.begin(), t.end());
+    if (!resubdivided || l == 1) return A;
+    return A * SpMat(below->op.S);
+  }
+};
+
+// The least squares for a subset of refined rows (order-free matching that missed some vertices).
+Points solve_rows(const SpMat& A, const Points& p, const Points& prior) {
   SpMat M = SpMat(A.transpose()) * A;
   // A vanishing pull towards the original keeps control points without matched rows defined.
   const double eps = 1e-9 * std::max(1.0, M.diagonal().mean());
@@ -240,12 +333,15 @@ Matching match_vertices(const LevelData& level, const Points& suspect, const Res
   return m;
 }
 
-Resynchronized from_matching(const ResyncContext::Impl& ctx, const LevelData& level, int l,
-                             const Points& suspect, Matching m, int rounds) {
+Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h, const Points& suspect,
+                             Matching m, int rounds) {
+  const LevelData& level = *h.level;
+  const int l = h.l;
   Resynchronized r;
   r.method = l == 0 ? "polyhedron" : "subdivided";
   r.level = l;
   r.order_recovered = true;
+  r.resubdivided = h.resubdivided;
   r.to_control_frame = m.transform;
   const Points cur = m.transform.apply(suspect);
   const int nr = static_cast<int>(level.points.rows());
@@ -257,7 +353,7 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const LevelData& le
       // The mark moves refined vertices by a fair fraction of their spacing, so pairs made with
       // the original refined vertices miss or swap some; pair again with the estimate S x until
       // the pairs stop growing.
-      const Points estimate = l == 0 ? r.points : apply_subdivision(level.op, r.points);
+      const Points estimate = h.apply(r.points);
       Matching next = m;
       mutual_pairs(estimate, PointGrid(estimate), suspect, &next);
       if (next.matched <= previous) break;
@@ -271,11 +367,11 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const LevelData& le
         p.row(static_cast<Eigen::Index>(rows.size())) = cur.row(m.suspect_of[j]);
         rows.push_back(j);
       }
-    r.points = m.matched == nr ? solve_level(level, l, p) : solve_rows(level, rows, p, ctx.control.points);
+    r.points = m.matched == nr ? h.solve(p) : solve_rows(h.rows_of(rows), p, ctx.control.points);
   }
   r.matched_fraction = static_cast<double>(m.matched) / nr;
   // Level 0: what separates the suspect from the original (mark, quantisation, noise).
-  const Points refined = l == 0 ? level.points : apply_subdivision(level.op, r.points);
+  const Points refined = l == 0 ? level.points : h.apply(r.points);
   Points fitted(m.matched, 3);
   for (size_t k = 0; k < rows.size(); ++k) fitted.row(static_cast<Eigen::Index>(k)) = refined.row(rows[k]);
   r.residual_rms = rms_rows(fitted, p) / ctx.diagonal;
@@ -437,16 +533,46 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
   // Same numbering: vertices correspond by index.
   for (int l = 0; l <= top && !o.force_surface_fit; ++l) {
     const LevelData& level = *ctx.levels[l];
-    if (level.points.rows() != ns || !faces_consistent(level, suspect)) continue;
+    if (level.points.rows() != ns) continue;
+    // A level L-1 file refined once more (by us or OpenSubdiv) numbers its edge points in the
+    // file's edge order: renumbered into the level-L order it is an in-order suspect too.
+    Points in_order;
+    if (faces_consistent(level, suspect)) {
+      in_order = suspect.points;
+    } else if (level.has_smooth && o.consider_resubdivision) {
+      Mesh renumbered;
+      renumbered.faces = suspect.faces;
+      for (auto& f : renumbered.faces)
+        for (int& v : f) v = level.smooth_order[static_cast<size_t>(v)];
+      if (!faces_consistent(level, renumbered)) continue;
+      in_order.resize(ns, 3);
+      for (int v = 0; v < ns; ++v) in_order.row(level.smooth_order[static_cast<size_t>(v)]) = suspect.points.row(v);
+    } else {
+      continue;
+    }
     Resynchronized r;
     r.method = l == 0 ? "polyhedron" : "subdivided";
     r.level = l;
-    if (o.align) r.to_control_frame = fit_similarity(suspect.points, level.points);
-    const Points p = r.to_control_frame.apply(suspect.points);
+    if (o.align) r.to_control_frame = fit_similarity(in_order, level.points);
+    const Points p = r.to_control_frame.apply(in_order);
     r.points = solve_level(level, l, p);
     // Level 0: what separates the suspect from the original (mark, quantisation, noise).
     const Points refined = l == 0 ? level.points : apply_subdivision(level.op, r.points);
     r.residual_rms = rms_rows(refined, p) / ctx.diagonal;
+    if (level.has_smooth && o.consider_resubdivision) {
+      // The same count and faces also come from a level L-1 copy subdivided once more without
+      // crease tags (a decoded file has none); solving that with the creased S_L biases every
+      // control point near a crease.
+      // Keep whichever hypothesis explains the suspect better (a tie keeps the creased one).
+      const LevelData& below = *ctx.levels[static_cast<size_t>(l - 1)];
+      Points xs = solve_smooth(below, level, l, p);
+      const double residual = rms_rows(apply_smooth(below, level, l, xs), p) / ctx.diagonal;
+      if (residual < r.residual_rms) {
+        r.points = std::move(xs);
+        r.residual_rms = residual;
+        r.resubdivided = true;
+      }
+    }
     refine_alignment(ctx, o, &r);
     if (l == 0) r.residual_rms = rms_rows(r.points, ctx.control.points) / ctx.diagonal;
     return r;
@@ -458,7 +584,15 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
     if (std::abs(ns - nr) > o.count_tolerance * nr) continue;
     const Matching m = match_vertices(level, suspect.points, o);
     if (m.matched < o.min_matched_fraction * nr) continue;
-    Resynchronized r = from_matching(ctx, level, l, suspect.points, m, o.matching_rounds);
+    Resynchronized r = from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m, o.matching_rounds);
+    if (level.has_smooth && o.consider_resubdivision) {
+      // Re-subdividing a decoded file numbers its edge points by that file's own edge order, so
+      // this leak arrives here rather than in the same-numbering branch. Same test as there; a
+      // hypothesis that pairs fewer vertices does not win by its smaller residual.
+      Resynchronized alt = from_matching(ctx, Hypothesis{&level, ctx.levels[static_cast<size_t>(l - 1)].get(), l, true},
+                                         suspect.points, m, o.matching_rounds);
+      if (alt.matched_fraction >= r.matched_fraction && alt.residual_rms < r.residual_rms) r = std::move(alt);
+    }
     refine_alignment(ctx, o, &r);
     if (l == 0) r.residual_rms = rms_rows(r.points, ctx.control.points) / ctx.diagonal;
     return r;

@@ -15,6 +15,10 @@
 //    Then x solves min |S_L x - p| through the precomputed Cholesky factor of S_L^T S_L, which
 //    averages noise over the 4^L-fold redundant refined vertices. The same matching at L = 0
 //    recognises a polyhedron whose order was lost.
+//    In the original's numbering, the same count and faces also arise from the level L-1 copy
+//    subdivided once more by the plain scheme (a decoded file has no crease tags): that
+//    hypothesis, T = untagged step * S_{L-1}, is solved too and kept when its residual is smaller
+//    (`resubdivided`).
 //  - "surface-fit": anything else (remeshed, re-tessellated). Similarity ICP against the original
 //    refined surface, then a few rounds of a linear point-to-plane fit of the control points with
 //    the original's topology, closest-point pairs both ways (as fitting/fit_control_points),
@@ -50,6 +54,9 @@ struct ResyncOptions {
   int alignment_samples = 4000;  // samples of each surface used by the similarity ICP
   double regularization = 1e-3;  // pull towards the original control points / mean data weight
   double max_distance = 0.02;    // correspondences farther than this x diagonal are ignored
+  // Also try "level L-1, then one untagged smooth step" for in-order suspects at level L >= 1
+  // (false: the creased hypothesis only, as before; for experiments).
+  bool consider_resubdivision = true;
   bool force_surface_fit = false;  // skip recognition (experiments, suspects known to be remeshed)
   int fit_iterations = 3;        // pairing / solve rounds against the current estimate
   std::uint64_t seed = 1;        // sampling is deterministic for a given seed
@@ -64,6 +71,10 @@ struct Resynchronized {
   double matched_fraction = 1;   // suspect data used: matched vertices or accepted samples
   Similarity to_control_frame;   // maps the suspect into the control's frame
   bool order_recovered = false;  // vertices matched by nearest neighbour (order was lost)
+  // "subdivided" at level L >= 1 explained better as the level L-1 copy refined once more
+  // without crease or corner tags (subdivide() on a decoded file): points solved with that
+  // operator. Only for suspects in the original's numbering (order_recovered = false).
+  bool resubdivided = false;
 };
 
 // Everything that depends only on the original control polyhedron (subdivision operators and
