@@ -1,6 +1,7 @@
 // The offline commands end to end, through the built binary: exit codes, messages, files.
 // Keys are fixed (test::write_key), so every number asserted here is reproducible.
 #include <gtest/gtest.h>
+#include <algorithm>
 #include <sys/stat.h>
 
 #include <nlohmann/json.hpp>
@@ -136,6 +137,9 @@ TEST(CliMark, FandiskUnattackedExactWrongKeyNullDeterministic) {
   EXPECT_TRUE(right["message"]["matches_record"].get<bool>());
   EXPECT_EQ(right["bit_error_rate"].get<double>(), 0.0);
   EXPECT_GT(right["neg_log10_p"].get<double>(), 300);
+  EXPECT_GT(right["calibrated_neg_log10_p"].get<double>(), 9);
+  EXPECT_EQ(right["verdict_p"].get<double>(),
+            std::max(right["p_value"].get<double>(), right["calibrated_p"].get<double>()));
   EXPECT_EQ(right["verdict"], "watermark present");
   EXPECT_EQ(right["resync"]["method"], "polyhedron");
   EXPECT_TRUE(right["suspect_is_issued_file"].get<bool>());
@@ -144,6 +148,8 @@ TEST(CliMark, FandiskUnattackedExactWrongKeyNullDeterministic) {
   const json wrong = extract_json(s, original, b, alice, a + ".mmrec.json");
   EXPECT_LT(std::abs(wrong["correlation"].get<double>()), 0.1) << wrong.dump();
   EXPECT_GT(wrong["p_value"].get<double>(), 0.01);
+  EXPECT_GT(wrong["calibrated_p"].get<double>(), 0.01) << wrong.dump();
+  EXPECT_GT(wrong["null_sd"].get<double>(), 0);
   EXPECT_FALSE(wrong["message"]["matches_record"].get<bool>());
   EXPECT_EQ(wrong["verdict"], "no watermark found");
 
