@@ -13,14 +13,8 @@ namespace mm {
 namespace {
 
 void validate(const Mesh& mesh, const CompressOptions& o, const std::string& source) {
+  check_mesh(mesh, source);
   if (mesh.num_vertices() < 3) throw InputError(source, "fewer than 3 vertices");
-  if (mesh.faces.empty()) throw InputError(source, "no faces");
-  if (!mesh.points.allFinite()) throw InputError(source, "non-finite vertex coordinates");
-  for (const auto& f : mesh.faces) {
-    if (f.size() < 3) throw InputError(source, "a face has fewer than 3 vertices");
-    for (int v : f)
-      if (v < 0 || v >= mesh.num_vertices()) throw InputError(source, "face index out of range");
-  }
   if (!(o.tolerance > 0) || !(o.max_vertices >= 4) || o.levels < 1 || o.levels > 5 ||
       !(o.angle_degrees > 0 && o.angle_degrees < 180) || o.max_rounds < 1)
     throw std::invalid_argument("compress: options out of range");

@@ -16,4 +16,18 @@ std::vector<std::pair<int, int>> unique_edges(const Mesh& mesh) {
   return edges;
 }
 
+void check_mesh(const Mesh& mesh, const std::string& source) {
+  if (mesh.faces.empty()) throw InputError(source, "no faces");
+  if (mesh.num_vertices() == 0) throw InputError(source, "no vertices");
+  for (Eigen::Index i = 0; i < mesh.points.rows(); ++i)
+    if (!mesh.points.row(i).allFinite())
+      throw InputError(source, "non-finite coordinate in vertex " + std::to_string(i));
+  for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
+    if (mesh.faces[i].size() < 3) throw InputError(source, "face " + std::to_string(i) + " has fewer than 3 vertices");
+    for (int v : mesh.faces[i])
+      if (v < 0 || v >= mesh.num_vertices())
+        throw InputError(source, "face " + std::to_string(i) + " index " + std::to_string(v) + " out of range");
+  }
+}
+
 }  // namespace mm

@@ -25,6 +25,7 @@ struct Mesh {
 // Undirected edges (i < j), sorted, each once.
 std::vector<std::pair<int, int>> unique_edges(const Mesh& mesh);
 
+
 // A problem with an input file or stream: names it and says what is wrong.
 class InputError : public std::runtime_error {
  public:
@@ -36,5 +37,9 @@ class InputError : public std::runtime_error {
  private:
   std::string source_, reason_;
 };
+
+// The structural minimum every algorithm assumes of a handed-in mesh: at least one vertex and one
+// face, finite coordinates, faces of 3+ in-range vertex indices. Throws InputError(source, reason).
+void check_mesh(const Mesh& mesh, const std::string& source);
 
 }  // namespace mm

@@ -31,17 +31,12 @@ void append_int(std::string& out, long long v) {
   out.append(buf, r.ptr);
 }
 
-void check_mesh(const Mesh& mesh, const std::string& path) {
-  if (mesh.num_faces() == 0) throw InputError(path, "refusing to write a mesh with no faces");
-  for (Eigen::Index i = 0; i < mesh.points.rows(); ++i)
-    for (int k = 0; k < 3; ++k)
-      if (!std::isfinite(mesh.points(i, k)))
-        throw InputError(path, "refusing to write non-finite coordinate in vertex " + std::to_string(i));
-  for (size_t i = 0; i < mesh.faces.size(); ++i) {
-    if (mesh.faces[i].size() < 3) throw InputError(path, "face " + std::to_string(i) + " has fewer than 3 vertices");
-    for (int v : mesh.faces[i])
-      if (v < 0 || v >= mesh.num_vertices())
-        throw InputError(path, "face " + std::to_string(i) + " index " + std::to_string(v) + " out of range");
+// The shared structural check, its reason prefixed so the message says nothing was written.
+void check_writable(const Mesh& mesh, const std::string& path) {
+  try {
+    check_mesh(mesh, path);
+  } catch (const InputError& e) {
+    throw InputError(path, "refusing to write: " + e.reason());
   }
 }
 
@@ -191,7 +186,7 @@ void write_mesh(const Mesh& mesh, const std::string& path) {
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
   if (ext != ".stl" && ext != ".obj" && ext != ".off" && ext != ".ply")
     throw InputError(path, "unknown mesh format \"" + ext + "\" (expected .stl, .obj, .off or .ply)");
-  check_mesh(mesh, path);
+  check_writable(mesh, path);
   std::string bytes = ext == ".stl" ? stl_bytes(mesh, path)
                       : ext == ".obj" ? obj_text(mesh)
                       : ext == ".off" ? off_text(mesh)

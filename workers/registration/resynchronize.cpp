@@ -511,21 +511,10 @@ void refine_alignment(const ResyncContext::Impl& ctx, const ResyncOptions& o, Re
   r->residual_rms *= c.scale;
 }
 
-void check_suspect(const Mesh& suspect, const std::string& source) {
-  if (suspect.num_vertices() == 0) throw InputError(source, "no vertices");
-  if (suspect.faces.empty()) throw InputError(source, "no faces");
-  if (!suspect.points.allFinite()) throw InputError(source, "non-finite coordinates");
-  for (const auto& f : suspect.faces) {
-    if (f.size() < 3) throw InputError(source, "a face with fewer than 3 vertices");
-    for (int v : f)
-      if (v < 0 || v >= suspect.num_vertices()) throw InputError(source, "face index out of range");
-  }
-}
-
 }  // namespace
 
 Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, const ResyncOptions& o) {
-  check_suspect(suspect, o.source);
+  check_mesh(suspect, o.source);
   const ResyncContext::Impl& ctx = context.impl();
   const int top = std::min(o.max_level, ctx.max_level);
   const int ns = suspect.num_vertices();
