@@ -10,7 +10,7 @@
 #include <set>
 #include <stdexcept>
 
-#include "fitting/closest_point.h"
+#include "fitting/closest_point_bvh.h"
 #include "subdivision/subdivide.h"
 
 namespace mm {
@@ -106,24 +106,71 @@ SpMat umbrella(const Mesh& control, const std::vector<std::pair<int, int>>& crea
   return L;
 }
 
+// The least-squares data term sum_r w_r |b_r . R - p_r|^2 over refined positions R, kept as its
+// normal equations in refined-vertex space, G = B^T W B and Y = B^T W P: every correspondence
+// row combines the vertices of one refined triangle, edge or vertex, so G has the pattern of the
+// refined mesh's edges, fixed for a fit. The control-space system is then S^T G S, a product
+// of much smaller matrices than forming A = B S and A^T W A row by row.
+class RefinedNormalEquations {
+ public:
+  RefinedNormalEquations(int refined_vertices, const std::vector<std::array<int, 3>>& tris,
+                         const std::vector<std::pair<int, int>>& segments) {
+    std::vector<Trip> t;
+    t.reserve(static_cast<size_t>(refined_vertices) + 6 * tris.size() + 2 * segments.size());
+    for (int v = 0; v < refined_vertices; ++v) t.emplace_back(v, v, 0.0);
+    auto edge = [&](int a, int b) {
+      t.emplace_back(a, b, 0.0);
+      t.emplace_back(b, a, 0.0);
+    };
+    for (const auto& f : tris) edge(f[0], f[1]), edge(f[1], f[2]), edge(f[2], f[0]);
+    for (auto [a, b] : segments) edge(a, b);
+    G.resize(refined_vertices, refined_vertices);
+    G.setFromTriplets(t.begin(), t.end());  // duplicates summed: zeros, structurally kept
+    G.makeCompressed();
+    Y.setZero(refined_vertices, 3);
+  }
+  void clear() {
+    std::fill(G.valuePtr(), G.valuePtr() + G.nonZeros(), 0.0);
+    Y.setZero();
+  }
+  template <size_t N>
+  void add(const std::array<std::pair<int, double>, N>& terms, const Eigen::Vector3d& p, double w) {
+    for (const auto& [a, ca] : terms) {
+      if (ca == 0) continue;
+      Y.row(a) += (w * ca) * p.transpose();
+      for (const auto& [b, cb] : terms)
+        if (cb != 0) at(a, b) += w * ca * cb;
+    }
+  }
+  SpMat G;
+  Eigen::MatrixXd Y;
+
+ private:
+  double& at(int a, int b) {
+    const int* begin = G.innerIndexPtr() + G.outerIndexPtr()[a];
+    const int* end = G.innerIndexPtr() + G.outerIndexPtr()[a + 1];
+    const int* k = std::lower_bound(begin, end, b);
+    return G.valuePtr()[k - G.innerIndexPtr()];
+  }
+};
+
 struct Correspondences {
-  std::vector<Trip> B;                 // rows over refined vertices
-  std::vector<Eigen::Vector3d> rhs;
-  std::vector<double> weight;
+  RefinedNormalEquations* normal = nullptr;  // accumulated when given (not for measurements)
+  double weight_sum = 0;
   std::vector<double> surface_dist;    // for statistics (surface terms only)
   std::vector<int> blame;              // per row: refined vertex mostly responsible
   int rows = 0;
-  void add(std::initializer_list<std::pair<int, double>> terms, const Eigen::Vector3d& p, double w,
+  template <size_t N>
+  void add(const std::array<std::pair<int, double>, N>& terms, const Eigen::Vector3d& p, double w,
            double dist, bool stat) {
     int best = -1;
     double bw = -1;
     for (auto [v, c] : terms) {
       if (c == 0) continue;
-      B.emplace_back(rows, v, c);
       if (c > bw) bw = c, best = v;
     }
-    rhs.push_back(p);
-    weight.push_back(w);
+    if (normal) normal->add(terms, p, w);
+    weight_sum += w;
     blame.push_back(best);
     if (stat) surface_dist.push_back(dist);
     ++rows;
@@ -138,16 +185,14 @@ struct Hints {
   std::vector<SegmentHit> on_crease;    // per target crease sample: hit on the refined creases
 };
 
-Correspondences correspond(const Points& R, const Mesh& refined,
-                           const std::vector<std::array<int, 3>>& refined_tris,
+Correspondences correspond(const Points& R, const TriangleBvh& surf, const SegmentBvh& crease,
                            const std::vector<std::pair<int, int>>& refined_creases,
-                           const TargetSamples& samples, const TriangleIndex& target_tris,
-                           const SegmentIndex& target_creases, const FitOptions& o,
-                           bool with_creases, Hints* hints) {
+                           const TargetSamples& samples, const TriangleBvh& target_tris,
+                           const SegmentBvh& target_creases, const FitOptions& o,
+                           bool with_creases, Hints* hints, RefinedNormalEquations* normal) {
   Correspondences c;
-  // After the first iteration every query on the moving surface has a hint: its kd-tree (for
-  // queries without one) is only built when a query needs it.
-  TriangleIndex surf(R, refined_tris, /*eager_search_tree=*/false);
+  c.normal = normal;
+  if (normal) normal->clear();
   if (hints) {
     hints->on_surface.resize(samples.surface.size());
     hints->on_target.resize(static_cast<size_t>(R.rows()));
@@ -156,63 +201,37 @@ Correspondences correspond(const Points& R, const Mesh& refined,
     hints->on_target_crease.resize(static_cast<size_t>(R.rows()));
     hints->on_crease.resize(samples.crease.size());
   }
-  SegmentIndex crease(R, refined_creases, /*eager_search_tree=*/false);
   std::vector<char> on_crease(R.rows(), 0);
   for (auto [a, b] : refined_creases) on_crease[a] = on_crease[b] = 1;
   if (!surf.empty())
     for (size_t k = 0; k < samples.surface.size(); ++k) {
       const auto& p = samples.surface[k];
-      TriangleHit h;
-      if (hints && hints->on_surface[k].triangle >= 0) {
-        const auto& prev = hints->on_surface[k];
-        const auto& t = refined_tris[prev.triangle];
-        TriangleHint hint{prev.triangle, prev.barycentric[0] * R.row(t[0]).transpose() +
-                                             prev.barycentric[1] * R.row(t[1]).transpose() +
-                                             prev.barycentric[2] * R.row(t[2]).transpose()};
-        h = surf.closest(p, hint);
-      } else {
-        h = surf.closest(p);
-      }
+      const TriangleHit h = surf.closest(p, hints ? hints->on_surface[k].triangle : -1);
       if (hints) hints->on_surface[k] = h;
       const auto& t = surf.triangle(h.triangle);
-      c.add({{t[0], h.barycentric[0]}, {t[1], h.barycentric[1]}, {t[2], h.barycentric[2]}}, p, 1.0,
-            h.distance, true);
+      c.add(std::array<std::pair<int, double>, 3>{{{t[0], h.barycentric[0]}, {t[1], h.barycentric[1]}, {t[2], h.barycentric[2]}}},
+            p, 1.0, h.distance, true);
     }
   if (!target_tris.empty())
     for (Eigen::Index v = 0; v < R.rows(); ++v) {
       if (with_creases && on_crease[v] && !target_creases.empty()) {
-        SegmentHit h;
-        if (hints && hints->on_target_crease[v].segment >= 0)
-          h = target_creases.closest(R.row(v).transpose(),
-                                     SegmentHint{hints->on_target_crease[v].segment, hints->on_target_crease[v].point});
-        else
-          h = target_creases.closest(R.row(v).transpose());
+        const SegmentHit h =
+            target_creases.closest(R.row(v).transpose(), hints ? hints->on_target_crease[v].segment : -1);
         if (hints) hints->on_target_crease[v] = h;
-        c.add({{static_cast<int>(v), 1.0}}, h.point, o.crease_weight, h.distance, false);
+        c.add(std::array<std::pair<int, double>, 1>{{{static_cast<int>(v), 1.0}}}, h.point, o.crease_weight,
+              h.distance, false);
       }
-      TriangleHit h;
-      if (hints && hints->on_target[v].triangle >= 0)
-        h = target_tris.closest(R.row(v).transpose(),
-                                TriangleHint{hints->on_target[v].triangle, hints->on_target[v].point});
-      else
-        h = target_tris.closest(R.row(v).transpose());
+      const TriangleHit h = target_tris.closest(R.row(v).transpose(), hints ? hints->on_target[v].triangle : -1);
       if (hints) hints->on_target[v] = h;
-      c.add({{static_cast<int>(v), 1.0}}, h.point, 1.0, h.distance, true);
+      c.add(std::array<std::pair<int, double>, 1>{{{static_cast<int>(v), 1.0}}}, h.point, 1.0, h.distance, true);
     }
   if (with_creases && !crease.empty())
     for (size_t k = 0; k < samples.crease.size(); ++k) {
       const auto& p = samples.crease[k];
-      SegmentHit h;
-      if (hints && hints->on_crease[k].segment >= 0) {
-        const auto& prev = hints->on_crease[k];
-        auto [a, b] = crease.segment(prev.segment);
-        h = crease.closest(p, SegmentHint{prev.segment, (1 - prev.t) * R.row(a).transpose() + prev.t * R.row(b).transpose()});
-      } else {
-        h = crease.closest(p);
-      }
+      const SegmentHit h = crease.closest(p, hints ? hints->on_crease[k].segment : -1);
       if (hints) hints->on_crease[k] = h;
       auto [a, b] = crease.segment(h.segment);
-      c.add({{a, 1 - h.t}, {b, h.t}}, p, o.crease_weight, h.distance, false);
+      c.add(std::array<std::pair<int, double>, 2>{{{a, 1 - h.t}, {b, h.t}}}, p, o.crease_weight, h.distance, false);
     }
   return c;
 }
@@ -260,8 +279,8 @@ struct FitTarget::Impl {
     }
   }
   std::vector<std::array<int, 3>> tris_list;
-  TriangleIndex tris;
-  SegmentIndex creases;
+  TriangleBvh tris;
+  SegmentBvh creases;
   TargetSamples samples, iteration_samples;
   int vertices;
   double diagonal;
@@ -287,8 +306,11 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   const auto op = build_subdivision(control, o.levels);
   const auto refined_creases = crease_edges(op.refined);
   const auto refined_tris = triangle_list(op.refined);
-  const TriangleIndex& target_tris = tg.tris;
-  const SegmentIndex& target_creases = tg.creases;
+  const TriangleBvh& target_tris = tg.tris;
+  // The refined surface keeps its triangles while it moves: one tree per fit, refitted.
+  TriangleBvh surf(op.S * control.points, refined_tris);
+  SegmentBvh crease(op.S * control.points, refined_creases);
+  const SegmentBvh& target_creases = tg.creases;
   const TargetSamples& samples = tg.samples;
   const TargetSamples& iteration_samples = tg.iteration_samples;
   Hints hints;
@@ -300,26 +322,26 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   const Eigen::SparseMatrix<double> LtL = Eigen::SparseMatrix<double>(L.transpose()) * Eigen::SparseMatrix<double>(L);
 
   const int n = control.num_vertices();
+  const SpMat St = op.S.transpose();
+  RefinedNormalEquations normal(static_cast<int>(op.S.rows()), refined_tris, refined_creases);
   Eigen::MatrixXd X = control.points;
   for (int it = 0; it < o.iterations; ++it) {
     Points R = op.S * X;
-    auto c = correspond(R, op.refined, refined_tris, refined_creases, iteration_samples, target_tris,
-                        target_creases, o, with_creases, &hints);
-    SpMat B(c.rows, op.S.rows());
-    B.setFromTriplets(c.B.begin(), c.B.end());
-    SpMat A = B * op.S;
-    Eigen::VectorXd w = Eigen::Map<Eigen::VectorXd>(c.weight.data(), c.rows);
-    Eigen::MatrixXd P(c.rows, 3);
-    for (int r = 0; r < c.rows; ++r) P.row(r) = c.rhs[r];
-    SpMat AtW = A.transpose() * w.asDiagonal();
-    Eigen::SparseMatrix<double> M = AtW * A;
-    const double scale = w.sum() / n;  // data weight per control vertex
+    if (it > 0) {
+      surf.refit(R);
+      crease.refit(R);
+    }
+    auto c = correspond(R, surf, crease, refined_creases, iteration_samples, target_tris,
+                        target_creases, o, with_creases, &hints, &normal);
+    SpMat GS = normal.G * op.S;
+    Eigen::SparseMatrix<double> M = St * GS;
+    const double scale = c.weight_sum / n;  // data weight per control vertex
     M += (o.smoothness * scale) * LtL;
     // A tiny pull towards the current positions keeps vertices without data well-posed.
     Eigen::SparseMatrix<double> I(n, n);
     I.setIdentity();
     M += (1e-6 * scale) * I;
-    Eigen::MatrixXd rhs = AtW * P + (1e-6 * scale) * X;
+    Eigen::MatrixXd rhs = St * normal.Y + (1e-6 * scale) * X;
     Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(M);
     if (solver.info() != Eigen::Success) throw std::runtime_error("fitting system is singular");
     Eigen::MatrixXd Xn = solver.solve(rhs);
@@ -346,8 +368,10 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
               final_hints.on_surface.begin() + tg.vertices);
   }
   final_hints.on_target = std::move(hints.on_target);
-  auto c = correspond(R, op.refined, refined_tris, refined_creases, samples, target_tris,
-                      target_creases, o, false, &final_hints);
+  surf.refit(R);
+  crease.refit(R);
+  auto c = correspond(R, surf, crease, refined_creases, samples, target_tris,
+                      target_creases, o, false, &final_hints, nullptr);
   out.stats = stats_of(c.surface_dist, tg.diagonal);
   // The first rows are the target vertices (sample_target puts them first).
   if (c.surface_dist.size() >= static_cast<size_t>(tg.vertices))
@@ -372,13 +396,14 @@ FitStats measure_fit(const Mesh& control, int levels, const Mesh& target) {
   const auto op = build_subdivision(control, levels);
   Points R = op.S * control.points;
   const auto tris = triangle_list(target);
-  const TriangleIndex target_tris(target.points, tris);
-  const SegmentIndex none(target.points, {});
+  const TriangleBvh target_tris(target.points, tris);
+  const TriangleBvh surf(R, triangle_list(op.refined));
+  const SegmentBvh none(target.points, {});
+  const SegmentBvh no_creases(R, {});
   FitOptions o;
   Features no_features;
   auto samples = sample_target(target, tris, no_features, o);
-  auto c = correspond(R, op.refined, triangle_list(op.refined), {}, samples, target_tris, none, o,
-                      false, nullptr);
+  auto c = correspond(R, surf, no_creases, {}, samples, target_tris, none, o, false, nullptr, nullptr);
   return stats_of(c.surface_dist, diagonal_of(target.points));
 }
 
