@@ -18,6 +18,7 @@ struct TriSlot {
   static constexpr int kVertices = 3;
   double v[3][3];
   double n[3], d;  // unit normal and offset (n . x = d) of the supporting plane
+  double lo[3], hi[3];  // bounding box
   int id;          // the caller's index
   bool regular;    // non-zero area
   bool prunable;   // plane accurate enough to skip on (not a sliver)
@@ -35,12 +36,24 @@ struct TriSlot {
     const Eigen::Vector3d nrm = regular ? Eigen::Vector3d(cr / std::sqrt(n2)) : Eigen::Vector3d::Zero();
     for (int k = 0; k < 3; ++k) n[k] = nrm[k];
     d = nrm.dot(a);
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min({v[0][k], v[1][k], v[2][k]});
+      hi[k] = std::max({v[0][k], v[1][k], v[2][k]});
+    }
   }
 
   // Closest point (Ericson, Real-Time Collision Detection 5.1.5) with barycentric weights;
   // replaces (x, w, best2) when strictly closer than best2.
   bool project(const double* p, double& best2, double* x, double* weights) const {
     if (!regular) return false;
+    // Most triangles visited are farther than the best point so far: their box (neighbours
+    // beside the answer) or their plane (layers above or below it) says so cheaply.
+    double b2 = 0;
+    for (int k = 0; k < 3; ++k) {
+      const double e = std::max(std::max(lo[k] - p[k], p[k] - hi[k]), 0.0);
+      b2 += e * e;
+    }
+    if (b2 >= best2) return false;
     if (prunable) {
       const double dp = dot3(n, p) - d;
       if (dp * dp >= best2) return false;
@@ -236,7 +249,7 @@ class Tree {
   static double box2(const Node& nd, const double* p) {
     double d2 = 0;
     for (int k = 0; k < 3; ++k) {
-      const double e = std::max({nd.lo[k] - p[k], 0.0, p[k] - nd.hi[k]});
+      const double e = std::max(std::max(nd.lo[k] - p[k], p[k] - nd.hi[k]), 0.0);
       d2 += e * e;
     }
     return d2;
