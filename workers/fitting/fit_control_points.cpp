@@ -154,6 +154,37 @@ class RefinedNormalEquations {
   }
 };
 
+// C = A B for row-major A and B whose patterns stay fixed while their values change (the
+// fit's G, S and S^T within one fit): C's pattern is found once, and each product accumulates
+// a row in a dense buffer and gathers it into that pattern, without the per-row index sorting
+// of a general sparse product.
+class FixedPatternProduct {
+ public:
+  FixedPatternProduct(const SpMat& A, const SpMat& B) : acc_(static_cast<size_t>(B.cols()), 0.0) {
+    SpMat a = A, b = B;  // ones, so no product term cancels out of the pattern
+    std::fill(a.valuePtr(), a.valuePtr() + a.nonZeros(), 1.0);
+    std::fill(b.valuePtr(), b.valuePtr() + b.nonZeros(), 1.0);
+    C = a * b;
+    C.makeCompressed();
+  }
+  const SpMat& operator()(const SpMat& A, const SpMat& B) {
+    for (Eigen::Index i = 0; i < A.outerSize(); ++i) {
+      for (SpMat::InnerIterator x(A, i); x; ++x)
+        for (SpMat::InnerIterator y(B, x.col()); y; ++y) acc_[static_cast<size_t>(y.col())] += x.value() * y.value();
+      for (int k = C.outerIndexPtr()[i]; k < C.outerIndexPtr()[i + 1]; ++k) {
+        double& v = acc_[static_cast<size_t>(C.innerIndexPtr()[k])];
+        C.valuePtr()[k] = v;
+        v = 0;
+      }
+    }
+    return C;
+  }
+  SpMat C;
+
+ private:
+  std::vector<double> acc_;
+};
+
 struct Correspondences {
   RefinedNormalEquations* normal = nullptr;  // accumulated when given (not for measurements)
   double weight_sum = 0;
@@ -319,11 +350,12 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   std::set<std::pair<int, int>> control_creases(control.creases.begin(), control.creases.end());
   for (const auto& e : crease_edges(control)) control_creases.insert(e);
   const SpMat L = umbrella(control, {control_creases.begin(), control_creases.end()});
-  const Eigen::SparseMatrix<double> LtL = Eigen::SparseMatrix<double>(L.transpose()) * Eigen::SparseMatrix<double>(L);
+  const SpMat LtL = SpMat(Eigen::SparseMatrix<double>(L.transpose()) * Eigen::SparseMatrix<double>(L));
 
   const int n = control.num_vertices();
   const SpMat St = op.S.transpose();
   RefinedNormalEquations normal(static_cast<int>(op.S.rows()), refined_tris, refined_creases);
+  FixedPatternProduct GS(normal.G, op.S), StGS(St, GS.C);
   Eigen::MatrixXd X = control.points;
   for (int it = 0; it < o.iterations; ++it) {
     Points R = op.S * X;
@@ -333,16 +365,19 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
     }
     auto c = correspond(R, surf, crease, refined_creases, iteration_samples, target_tris,
                         target_creases, o, with_creases, &hints, &normal);
-    SpMat GS = normal.G * op.S;
-    Eigen::SparseMatrix<double> M = St * GS;
+    SpMat M = StGS(St, GS(normal.G, op.S));
     const double scale = c.weight_sum / n;  // data weight per control vertex
     M += (o.smoothness * scale) * LtL;
     // A tiny pull towards the current positions keeps vertices without data well-posed.
-    Eigen::SparseMatrix<double> I(n, n);
+    SpMat I(n, n);
     I.setIdentity();
     M += (1e-6 * scale) * I;
+    M.makeCompressed();
     Eigen::MatrixXd rhs = St * normal.Y + (1e-6 * scale) * X;
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(M);
+    // M is symmetric: its row-major arrays read as column-major are M again (no conversion).
+    const Eigen::Map<const Eigen::SparseMatrix<double>> Mc(n, n, M.nonZeros(), M.outerIndexPtr(),
+                                                           M.innerIndexPtr(), M.valuePtr());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(Mc);
     if (solver.info() != Eigen::Success) throw std::runtime_error("fitting system is singular");
     Eigen::MatrixXd Xn = solver.solve(rhs);
     if (!Xn.allFinite()) throw std::runtime_error("fitting produced non-finite positions");
