@@ -66,16 +66,23 @@ TargetSamples sample_target(const Mesh& target, const std::vector<std::array<int
 
 // Edges of the refined mesh that act as creases: tagged creases plus open boundary edges.
 std::vector<std::pair<int, int>> crease_edges(const Mesh& m) {
-  std::map<std::pair<int, int>, int> count;
+  std::vector<std::pair<int, int>> edges;
   for (const auto& f : m.faces)
     for (size_t k = 0; k < f.size(); ++k) {
       int a = f[k], b = f[(k + 1) % f.size()];
-      ++count[{std::min(a, b), std::max(a, b)}];
+      edges.emplace_back(std::min(a, b), std::max(a, b));
     }
-  std::set<std::pair<int, int>> out(m.creases.begin(), m.creases.end());
-  for (const auto& [e, n] : count)
-    if (n == 1) out.insert(e);
-  return {out.begin(), out.end()};
+  std::sort(edges.begin(), edges.end());
+  std::vector<std::pair<int, int>> out(m.creases.begin(), m.creases.end());
+  for (size_t k = 0; k < edges.size();) {
+    size_t j = k;
+    while (j < edges.size() && edges[j] == edges[k]) ++j;
+    if (j - k == 1) out.push_back(edges[k]);
+    k = j;
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
 }
 
 // Umbrella Laplacian of the control mesh; crease vertices only see their crease neighbours
