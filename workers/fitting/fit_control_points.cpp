@@ -135,29 +135,48 @@ class RefinedNormalEquations {
     G.setFromTriplets(t.begin(), t.end());  // duplicates summed: zeros, structurally kept
     G.makeCompressed();
     Y.setZero(refined_vertices, 3);
+    // Where each term pair lands in G, found once instead of once per correspondence.
+    tri_slots.resize(tris.size());
+    for (size_t k = 0; k < tris.size(); ++k)
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) tri_slots[k][static_cast<size_t>(3 * i + j)] = slot(tris[k][static_cast<size_t>(i)], tris[k][static_cast<size_t>(j)]);
+    segment_slots.resize(segments.size());
+    for (size_t k = 0; k < segments.size(); ++k) {
+      const int e[2] = {segments[k].first, segments[k].second};
+      for (int i = 0; i < 2; ++i)
+        for (int j = 0; j < 2; ++j) segment_slots[k][static_cast<size_t>(2 * i + j)] = slot(e[i], e[j]);
+    }
+    vertex_slots.resize(static_cast<size_t>(refined_vertices));
+    for (int v = 0; v < refined_vertices; ++v) vertex_slots[static_cast<size_t>(v)] = {slot(v, v)};
   }
+  std::vector<std::array<int, 9>> tri_slots;      // per refined triangle: G slots of its 3 x 3 pairs
+  std::vector<std::array<int, 4>> segment_slots;  // per refined crease edge: its 2 x 2 pairs
+  std::vector<std::array<int, 1>> vertex_slots;   // per refined vertex: its diagonal slot
   void clear() {
     std::fill(G.valuePtr(), G.valuePtr() + G.nonZeros(), 0.0);
     Y.setZero();
   }
+  // `slots`: G slots of the terms' pairs (tri_slots, segment_slots or vertex_slots).
   template <size_t N>
-  void add(const std::array<std::pair<int, double>, N>& terms, const Eigen::Vector3d& p, double w) {
-    for (const auto& [a, ca] : terms) {
+  void add(const std::array<std::pair<int, double>, N>& terms, const std::array<int, N * N>& slots,
+           const Eigen::Vector3d& p, double w) {
+    double* g = G.valuePtr();
+    for (size_t i = 0; i < N; ++i) {
+      const double ca = terms[i].second;
       if (ca == 0) continue;
-      Y.row(a) += (w * ca) * p.transpose();
-      for (const auto& [b, cb] : terms)
-        if (cb != 0) at(a, b) += w * ca * cb;
+      Y.row(terms[i].first) += (w * ca) * p.transpose();
+      for (size_t j = 0; j < N; ++j)
+        if (terms[j].second != 0) g[slots[N * i + j]] += w * ca * terms[j].second;
     }
   }
   SpMat G;
   Eigen::MatrixXd Y;
 
  private:
-  double& at(int a, int b) {
+  int slot(int a, int b) const {
     const int* begin = G.innerIndexPtr() + G.outerIndexPtr()[a];
     const int* end = G.innerIndexPtr() + G.outerIndexPtr()[a + 1];
-    const int* k = std::lower_bound(begin, end, b);
-    return G.valuePtr()[k - G.innerIndexPtr()];
+    return static_cast<int>(std::lower_bound(begin, end, b) - G.innerIndexPtr());
   }
 };
 
@@ -198,8 +217,9 @@ struct Correspondences {
   std::vector<double> surface_dist;    // for statistics (surface terms only)
   std::vector<int> blame;              // per row: refined vertex mostly responsible
   int rows = 0;
+  // `slot`: index of the triangle, crease edge or vertex in the normal equations' slot tables.
   template <size_t N>
-  void add(const std::array<std::pair<int, double>, N>& terms, const Eigen::Vector3d& p, double w,
+  void add(const std::array<std::pair<int, double>, N>& terms, int slot, const Eigen::Vector3d& p, double w,
            double dist, bool stat) {
     int best = -1;
     double bw = -1;
@@ -207,7 +227,11 @@ struct Correspondences {
       if (c == 0) continue;
       if (c > bw) bw = c, best = v;
     }
-    if (normal) normal->add(terms, p, w);
+    if (normal) {
+      if constexpr (N == 3) normal->add(terms, normal->tri_slots[static_cast<size_t>(slot)], p, w);
+      if constexpr (N == 2) normal->add(terms, normal->segment_slots[static_cast<size_t>(slot)], p, w);
+      if constexpr (N == 1) normal->add(terms, normal->vertex_slots[static_cast<size_t>(slot)], p, w);
+    }
     weight_sum += w;
     blame.push_back(best);
     if (stat) surface_dist.push_back(dist);
@@ -248,7 +272,7 @@ Correspondences correspond(const Points& R, const TriangleBvh& surf, const Segme
       if (hints) hints->on_surface[k] = h;
       const auto& t = surf.triangle(h.triangle);
       c.add(std::array<std::pair<int, double>, 3>{{{t[0], h.barycentric[0]}, {t[1], h.barycentric[1]}, {t[2], h.barycentric[2]}}},
-            p, 1.0, h.distance, true);
+            h.triangle, p, 1.0, h.distance, true);
     }
   if (!target_tris.empty())
     for (Eigen::Index v = 0; v < R.rows(); ++v) {
@@ -256,12 +280,13 @@ Correspondences correspond(const Points& R, const TriangleBvh& surf, const Segme
         const SegmentHit h =
             target_creases.closest(R.row(v).transpose(), hints ? hints->on_target_crease[v].segment : -1);
         if (hints) hints->on_target_crease[v] = h;
-        c.add(std::array<std::pair<int, double>, 1>{{{static_cast<int>(v), 1.0}}}, h.point, o.crease_weight,
+        c.add(std::array<std::pair<int, double>, 1>{{{static_cast<int>(v), 1.0}}}, static_cast<int>(v), h.point, o.crease_weight,
               h.distance, false);
       }
       const TriangleHit h = target_tris.closest(R.row(v).transpose(), hints ? hints->on_target[v].triangle : -1);
       if (hints) hints->on_target[v] = h;
-      c.add(std::array<std::pair<int, double>, 1>{{{static_cast<int>(v), 1.0}}}, h.point, 1.0, h.distance, true);
+      c.add(std::array<std::pair<int, double>, 1>{{{static_cast<int>(v), 1.0}}}, static_cast<int>(v), h.point, 1.0,
+            h.distance, true);
     }
   if (with_creases && !crease.empty())
     for (size_t k = 0; k < samples.crease.size(); ++k) {
@@ -269,7 +294,8 @@ Correspondences correspond(const Points& R, const TriangleBvh& surf, const Segme
       const SegmentHit h = crease.closest(p, hints ? hints->on_crease[k].segment : -1);
       if (hints) hints->on_crease[k] = h;
       auto [a, b] = crease.segment(h.segment);
-      c.add(std::array<std::pair<int, double>, 2>{{{a, 1 - h.t}, {b, h.t}}}, p, o.crease_weight, h.distance, false);
+      c.add(std::array<std::pair<int, double>, 2>{{{a, 1 - h.t}, {b, h.t}}}, h.segment, p, o.crease_weight,
+            h.distance, false);
     }
   return c;
 }
