@@ -87,6 +87,26 @@ TEST(Subdivision, MixedMeshIsWatertightWithExpectedCounts) {
   }
 }
 
+TEST(Subdivision, VertexCountsFromTopologyMatchTheOperators) {
+  // Triangles, quads, a pentagon, open sheets, a non-manifold vertex (two triangles sharing only
+  // a vertex): the counts a caller uses to tell a mesh's level before building that level.
+  Mesh pentagon = make_mesh({{0, 0, 0}, {1, 0, 0}, {1.3, 1, 0}, {0.5, 1.6, 0}, {-0.3, 1, 0}, {0.5, 0.7, 1}},
+                            {{0, 1, 2, 3, 4}, {0, 5, 1}, {1, 5, 2}, {2, 5, 3}, {3, 5, 4}, {4, 5, 0}});
+  Mesh open = mixed_house();
+  open.faces.erase(open.faces.begin() + 1);
+  const Mesh bowtie = make_mesh({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {-1, 0, 0}, {0, -1, 0}}, {{0, 1, 2}, {0, 3, 4}});
+  for (const Mesh& m : {tetrahedron(), cube(), mixed_house(), grid(3, 2), test::triangulated(grid(2, 2)), pentagon, open, bowtie}) {
+    const std::vector<long long> counts = subdivision_vertex_counts(m, 4);
+    ASSERT_EQ(counts.size(), 5u);
+    for (int level = 0; level <= 4; ++level)
+      EXPECT_EQ(counts[static_cast<size_t>(level)], build_subdivision(m, level).S.rows()) << "level " << level;
+  }
+  Mesh bad = cube();
+  bad.faces[0][0] = 99;
+  EXPECT_THROW(subdivision_vertex_counts(bad, 2), InputError);
+  EXPECT_THROW(subdivision_vertex_counts(cube(), kMaxSubdivisionLevels + 1), std::invalid_argument);
+}
+
 TEST(Subdivision, RowsSumToOneAndAreConvex) {
   Mesh m = mixed_house();
   m.creases = {{0, 1}, {1, 2}, {2, 3}};

@@ -78,4 +78,9 @@ int PointGrid::nearest(const Eigen::Vector3d& q, double* squared_distance) const
   return best;
 }
 
+std::size_t PointGrid::memory_bytes() const {
+  return static_cast<std::size_t>(points_.size()) * sizeof(double) +
+         (start_.capacity() + index_.capacity()) * sizeof(int);
+}
+
 }  // namespace mm

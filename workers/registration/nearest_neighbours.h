@@ -2,6 +2,7 @@
 // row form), for matching a suspect's vertices to an original's when their order was lost.
 #pragma once
 #include <Eigen/Core>
+#include <cstddef>
 #include <vector>
 
 #include "meshio/mesh.h"
@@ -17,6 +18,8 @@ class PointGrid {
   // Index of the nearest point (ties: lowest index) and its squared distance; -1 when empty.
   // Queries far outside the points' box cost no more than those inside.
   int nearest(const Eigen::Vector3d& q, double* squared_distance = nullptr) const;
+  // Heap bytes held (the copy of the points and the cell lists), for callers that budget memory.
+  std::size_t memory_bytes() const;
 
  private:
   Points points_;

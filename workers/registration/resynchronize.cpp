@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <atomic>
+#include <mutex>
 #include <random>
 #include <stdexcept>
 
@@ -85,15 +87,73 @@ struct LevelData {
   std::vector<int> face_offsets, face_list;  // vertex -> incident refined faces
 };
 
+// The remeshed suspects' target: the original refined surface at fit_level.
+struct FitSurface {
+  std::vector<std::array<int, 3>> tris;  // triangles of the refined original at fit_level
+  std::unique_ptr<TriangleIndex> tree;
+  Points samples;  // area-weighted samples of that surface (moments, reverse ICP pairs)
+};
+
+// Levels and the fit surface are built on first use: a suspect needs the level its vertex count
+// names (and the one below, for the re-subdivided hypothesis) or the fit surface, rarely all of
+// them, and level 4 alone is about three quarters of everything. Each is built once (call_once;
+// a build that throws is retried by the next caller) and never changes afterwards, so readers
+// need no lock once they hold the reference.
 struct ResyncContext::Impl {
   Mesh control;
   int max_level = 0, fit_level = 0;
   double diagonal = 0;
-  std::vector<std::unique_ptr<LevelData>> levels;
-  std::vector<std::array<int, 3>> fit_tris;  // triangles of the refined original at fit_level
-  std::unique_ptr<TriangleIndex> fit_tree;
-  Points fit_samples;  // area-weighted samples of that surface (moments, reverse ICP pairs)
+  std::vector<long long> vertex_counts;  // per level, from the topology alone
+
+  const LevelData& level(int l) const;
+  const FitSurface& fit() const;
+  std::size_t memory_bytes() const { return fixed_bytes + built_bytes.load(std::memory_order_relaxed); }
+
+ private:
+  friend class ResyncContext;
+  struct LevelSlot {
+    std::once_flag once;
+    std::unique_ptr<LevelData> data;
+    std::atomic<bool> built{false};  // for level_built(), which must not wait for a build
+  };
+  mutable std::array<LevelSlot, kMaxSubdivisionLevels + 1> slots;
+  mutable std::once_flag fit_once;
+  mutable std::unique_ptr<FitSurface> fit_surface;
+  std::size_t fixed_bytes = 0;
+  mutable std::atomic<std::size_t> built_bytes{0};
+
+  std::unique_ptr<LevelData> build_level(int l) const;
 };
+
+namespace {
+
+// Approximate heap bytes of what a context keeps (allocator overhead ignored), so a cache can
+// hold contexts to a memory budget.
+std::size_t bytes_of(const SparseOperator& m) {
+  return static_cast<std::size_t>(m.data().allocatedSize()) * (sizeof(double) + sizeof(int)) +
+         static_cast<std::size_t>(m.outerSize() + 1) * sizeof(int);
+}
+std::size_t bytes_of(const Eigen::SimplicialLDLT<SpMat>& f) {
+  if (f.rows() == 0) return 0;
+  const SpMat& L = f.matrixL().nestedExpression();
+  // The factor, D, both permutations and the elimination tree / nonzero counts.
+  return static_cast<std::size_t>(L.data().allocatedSize()) * (sizeof(double) + sizeof(int)) +
+         static_cast<std::size_t>(f.rows()) * (sizeof(double) + 5 * sizeof(int));
+}
+std::size_t bytes_of(const Mesh& m) {
+  std::size_t b = static_cast<std::size_t>(m.points.size()) * sizeof(double) +
+                  m.faces.capacity() * sizeof(std::vector<int>) + m.creases.capacity() * sizeof(m.creases[0]) +
+                  m.corners.capacity() * sizeof(int);
+  for (const auto& f : m.faces) b += f.capacity() * sizeof(int) + 16;  // + malloc's chunk header
+  return b;
+}
+// TriangleIndex (its copy of the triangles, CGAL's AABB tree with a node and a primitive per
+// triangle, the kd-tree its searches start from): about 300 bytes per triangle, measured with
+// mallinfo2 on the creased fandisk_quads at level 3 (98k triangles);
+// tests/registration/test_resync_context.cpp checks the whole estimate against the heap.
+constexpr std::size_t kTriangleIndexBytesPerTriangle = 300;
+
+}  // namespace
 
 ResyncContext::ResyncContext(const Mesh& control, int max_level, int fit_level) : impl_(std::make_unique<Impl>()) {
   if (max_level < 0 || max_level > kMaxSubdivisionLevels)
@@ -106,83 +166,122 @@ ResyncContext::ResyncContext(const Mesh& control, int max_level, int fit_level) 
   m.max_level = max_level;
   m.diagonal = diagonal_of(control.points);
   if (!(m.diagonal > 0)) throw InputError("control polyhedron", "degenerate bounding box");
-  for (int l = 0; l <= max_level; ++l) {
-    auto d = std::make_unique<LevelData>();
-    d->op = build_subdivision(control, l);
-    d->points = l == 0 ? control.points : apply_subdivision(d->op, control.points);
-    if (l > 0) {
-      const SpMat S = d->op.S;
-      const SpMat StS = SpMat(S.transpose()) * S;
-      d->normal.compute(StS);
-      if (d->normal.info() != Eigen::Success)
-        throw InputError("control polyhedron", "subdivision normal equations are singular at level " + std::to_string(l));
-    }
-    d->grid = std::make_unique<PointGrid>(d->points);
-    if (l > 0) {
-      const LevelData& below = *m.levels[static_cast<size_t>(l - 1)];
-      Mesh untagged = below.op.refined;
-      if (!untagged.creases.empty() || !untagged.corners.empty()) {
-        // One step from the level L-1 mesh as a file numbers its edge points in that file's edge
-        // order, not as the level-L refinement does. The tagged step in that numbering
-        // reproduces the level-L points, which gives the permutation to the level-L numbering.
-        untagged.points = below.points;
-        const SparseOperator tagged_step = build_subdivision(untagged, 1).S;
-        untagged.creases.clear();
-        untagged.corners.clear();
-        const SparseOperator U = build_subdivision(untagged, 1).S;
-        const Points same = tagged_step * below.points;
-        const int nr = static_cast<int>(d->points.rows());
-        std::vector<int> order(static_cast<size_t>(nr), -1);
-        std::vector<char> taken(static_cast<size_t>(nr), 0);
-        bool bijective = same.rows() == nr;
-        const double tolerance = 1e-18 * m.diagonal * m.diagonal;
-        for (int j = 0; j < nr && bijective; ++j) {
-          double d2 = 0;
-          const int k = d->grid->nearest(same.row(j).transpose(), &d2);
-          bijective = k >= 0 && d2 <= tolerance && !taken[static_cast<size_t>(k)];
-          if (bijective) order[static_cast<size_t>(j)] = k, taken[static_cast<size_t>(k)] = 1;
-        }
-        if (bijective) {
-          std::vector<Trip> t;
-          t.reserve(static_cast<size_t>(U.nonZeros()));
-          for (int j = 0; j < nr; ++j)
-            for (SparseOperator::InnerIterator it(U, j); it; ++it)
-              t.emplace_back(order[static_cast<size_t>(j)], static_cast<int>(it.col()), it.value());
-          d->smooth_step.resize(nr, U.cols());
-          d->smooth_step.setFromTriplets(t.begin(), t.end());
-          d->smooth_order = std::move(order);
-          // T^T T = S_{L-1}^T (U^T U) S_{L-1}: formed at level L-1's size, never T (at L = 4 as
-          // large as S_4), and in S_{L-1}'s own row-major storage, which saves two copies of it.
-          const SparseOperator UtU = SparseOperator(d->smooth_step.transpose()) * d->smooth_step;
-          SpMat N;
-          if (l == 1) {
-            N = UtU;
-          } else {
-            const SparseOperator G = UtU * below.op.S;
-            N = below.op.S.transpose() * G;
-          }
-          d->smooth_normal.compute(N);
-          d->has_smooth = d->smooth_normal.info() == Eigen::Success;
-        }
-        if (!d->has_smooth) d->smooth_step = SparseOperator(), d->smooth_order.clear();
-      }
-    }
-    const int nv = static_cast<int>(d->points.rows());
-    d->face_offsets.assign(static_cast<size_t>(nv) + 1, 0);
-    for (const auto& f : d->op.refined.faces)
-      for (int v : f) ++d->face_offsets[static_cast<size_t>(v) + 1];
-    for (int v = 0; v < nv; ++v) d->face_offsets[v + 1] += d->face_offsets[v];
-    d->face_list.assign(static_cast<size_t>(d->face_offsets.back()), 0);
-    std::vector<int> fill(d->face_offsets.begin(), d->face_offsets.end() - 1);
-    for (int f = 0; f < static_cast<int>(d->op.refined.faces.size()); ++f)
-      for (int v : d->op.refined.faces[f]) d->face_list[fill[v]++] = f;
-    m.levels.push_back(std::move(d));
-  }
   m.fit_level = std::clamp(fit_level, std::min(1, max_level), max_level);
-  const LevelData& fit = *m.levels[m.fit_level];
-  m.fit_tris = triangle_list(fit.op.refined);
-  m.fit_tree = std::make_unique<TriangleIndex>(fit.points, m.fit_tris);
-  m.fit_samples = sample_area(fit.points, m.fit_tris, 20000, 7);
+  // Checks the topology now, as building every level here did before levels became lazy.
+  m.vertex_counts = subdivision_vertex_counts(control, max_level);
+  m.fixed_bytes = sizeof(Impl) + bytes_of(m.control) + m.vertex_counts.capacity() * sizeof(long long);
+  m.level(0);
+}
+
+const LevelData& ResyncContext::Impl::level(int l) const {
+  if (l < 0 || l > max_level)
+    throw std::out_of_range("resync: level " + std::to_string(l) + " outside [0, " + std::to_string(max_level) + "]");
+  LevelSlot& slot = slots[static_cast<size_t>(l)];
+  std::call_once(slot.once, [&] {
+    slot.data = build_level(l);
+    slot.built.store(true, std::memory_order_release);
+  });
+  return *slot.data;
+}
+
+std::unique_ptr<LevelData> ResyncContext::Impl::build_level(int l) const {
+  auto d = std::make_unique<LevelData>();
+  d->op = build_subdivision(control, l);
+  d->points = l == 0 ? control.points : apply_subdivision(d->op, control.points);
+  if (d->points.rows() != vertex_counts[static_cast<size_t>(l)])
+    throw std::logic_error("resync: level " + std::to_string(l) + " has " + std::to_string(d->points.rows()) +
+                           " vertices, its count said " + std::to_string(vertex_counts[static_cast<size_t>(l)]));
+  if (l > 0) {
+    const SpMat S = d->op.S;
+    const SpMat StS = SpMat(S.transpose()) * S;
+    d->normal.compute(StS);
+    if (d->normal.info() != Eigen::Success)
+      throw InputError("control polyhedron", "subdivision normal equations are singular at level " + std::to_string(l));
+  }
+  d->grid = std::make_unique<PointGrid>(d->points);
+  if (l > 0) {
+    const LevelData& below = level(l - 1);
+    Mesh untagged = below.op.refined;
+    if (!untagged.creases.empty() || !untagged.corners.empty()) {
+      // One step from the level L-1 mesh as a file numbers its edge points in that file's edge
+      // order, not as the level-L refinement does. The tagged step in that numbering
+      // reproduces the level-L points, which gives the permutation to the level-L numbering.
+      untagged.points = below.points;
+      const SparseOperator tagged_step = build_subdivision(untagged, 1).S;
+      untagged.creases.clear();
+      untagged.corners.clear();
+      const SparseOperator U = build_subdivision(untagged, 1).S;
+      const Points same = tagged_step * below.points;
+      const int nr = static_cast<int>(d->points.rows());
+      std::vector<int> order(static_cast<size_t>(nr), -1);
+      std::vector<char> taken(static_cast<size_t>(nr), 0);
+      bool bijective = same.rows() == nr;
+      const double tolerance = 1e-18 * diagonal * diagonal;
+      for (int j = 0; j < nr && bijective; ++j) {
+        double d2 = 0;
+        const int k = d->grid->nearest(same.row(j).transpose(), &d2);
+        bijective = k >= 0 && d2 <= tolerance && !taken[static_cast<size_t>(k)];
+        if (bijective) order[static_cast<size_t>(j)] = k, taken[static_cast<size_t>(k)] = 1;
+      }
+      if (bijective) {
+        std::vector<Trip> t;
+        t.reserve(static_cast<size_t>(U.nonZeros()));
+        for (int j = 0; j < nr; ++j)
+          for (SparseOperator::InnerIterator it(U, j); it; ++it)
+            t.emplace_back(order[static_cast<size_t>(j)], static_cast<int>(it.col()), it.value());
+        d->smooth_step.resize(nr, U.cols());
+        d->smooth_step.setFromTriplets(t.begin(), t.end());
+        d->smooth_order = std::move(order);
+        // T^T T = S_{L-1}^T (U^T U) S_{L-1}: formed at level L-1's size, never T (at L = 4 as
+        // large as S_4), and in S_{L-1}'s own row-major storage, which saves two copies of it.
+        const SparseOperator UtU = SparseOperator(d->smooth_step.transpose()) * d->smooth_step;
+        SpMat N;
+        if (l == 1) {
+          N = UtU;
+        } else {
+          const SparseOperator G = UtU * below.op.S;
+          N = below.op.S.transpose() * G;
+        }
+        d->smooth_normal.compute(N);
+        d->has_smooth = d->smooth_normal.info() == Eigen::Success;
+      }
+      if (!d->has_smooth) d->smooth_step = SparseOperator(), d->smooth_order.clear();
+    }
+  }
+  const int nv = static_cast<int>(d->points.rows());
+  d->face_offsets.assign(static_cast<size_t>(nv) + 1, 0);
+  for (const auto& f : d->op.refined.faces)
+    for (int v : f) ++d->face_offsets[static_cast<size_t>(v) + 1];
+  for (int v = 0; v < nv; ++v) d->face_offsets[v + 1] += d->face_offsets[v];
+  d->face_list.assign(static_cast<size_t>(d->face_offsets.back()), 0);
+  std::vector<int> fill(d->face_offsets.begin(), d->face_offsets.end() - 1);
+  for (int f = 0; f < static_cast<int>(d->op.refined.faces.size()); ++f)
+    for (int v : d->op.refined.faces[f]) d->face_list[fill[v]++] = f;
+
+  std::size_t bytes = sizeof(LevelData) + bytes_of(d->op.S) + bytes_of(d->op.refined) +
+                      static_cast<std::size_t>(d->points.size()) * sizeof(double) + bytes_of(d->normal) +
+                      bytes_of(d->smooth_step) + d->smooth_order.capacity() * sizeof(int) +
+                      bytes_of(d->smooth_normal) + d->grid->memory_bytes() +
+                      (d->face_offsets.capacity() + d->face_list.capacity()) * sizeof(int);
+  for (const auto& step : d->op.steps) bytes += bytes_of(step);
+  built_bytes.fetch_add(bytes, std::memory_order_relaxed);
+  return d;
+}
+
+const FitSurface& ResyncContext::Impl::fit() const {
+  std::call_once(fit_once, [&] {
+    const LevelData& at = level(fit_level);
+    auto f = std::make_unique<FitSurface>();
+    f->tris = triangle_list(at.op.refined);
+    f->tree = std::make_unique<TriangleIndex>(at.points, f->tris);
+    f->samples = sample_area(at.points, f->tris, 20000, 7);
+    built_bytes.fetch_add(sizeof(FitSurface) + f->tris.capacity() * sizeof(f->tris[0]) +
+                              f->tris.size() * kTriangleIndexBytesPerTriangle +
+                              static_cast<std::size_t>(f->samples.size()) * sizeof(double),
+                          std::memory_order_relaxed);
+    fit_surface = std::move(f);
+  });
+  return *fit_surface;
 }
 
 ResyncContext::~ResyncContext() = default;
@@ -192,8 +291,22 @@ const Mesh& ResyncContext::control() const { return impl_->control; }
 int ResyncContext::max_level() const { return impl_->max_level; }
 int ResyncContext::fit_level() const { return impl_->fit_level; }
 double ResyncContext::diagonal() const { return impl_->diagonal; }
-const SubdivisionOperator& ResyncContext::subdivision(int level) const { return impl_->levels.at(level)->op; }
-const Points& ResyncContext::refined_points(int level) const { return impl_->levels.at(level)->points; }
+int ResyncContext::vertex_count(int level) const {
+  if (level < 0 || level > impl_->max_level)
+    throw std::out_of_range("resync: level " + std::to_string(level) + " outside [0, " +
+                            std::to_string(impl_->max_level) + "]");
+  return static_cast<int>(impl_->vertex_counts[static_cast<size_t>(level)]);
+}
+const SubdivisionOperator& ResyncContext::subdivision(int level) const { return impl_->level(level).op; }
+const Points& ResyncContext::refined_points(int level) const { return impl_->level(level).points; }
+bool ResyncContext::level_built(int level) const {
+  return level >= 0 && level <= impl_->max_level && impl_->slots[static_cast<size_t>(level)].built.load(std::memory_order_acquire);
+}
+void ResyncContext::build_all() const {
+  for (int l = 0; l <= impl_->max_level; ++l) impl_->level(l);
+  impl_->fit();
+}
+std::size_t ResyncContext::memory_bytes() const { return impl_->memory_bytes(); }
 
 namespace {
 
@@ -388,16 +501,17 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
   const Points samples = stack(strided(suspect.points, o.suspect_samples),
                                sample_area(suspect.points, tris, o.suspect_samples, o.seed));
 
+  const FitSurface& fit = ctx.fit();
   if (o.align) {
-    const TriangleIndex& tree = *ctx.fit_tree;
+    const TriangleIndex& tree = *fit.tree;
     ClosestPoint closest = [&tree](const Eigen::Vector3d& q) { return tree.closest(q).point; };
     const Points moving = sample_area(suspect.points, tris, o.alignment_samples, o.seed + 1);
-    const Points fixed = strided(ctx.fit_samples, o.alignment_samples);
+    const Points fixed = strided(fit.samples, o.alignment_samples);
     r.to_control_frame = align_similarity(moving, moving, fixed, closest, o.icp).transform;
   }
   const Similarity& T = r.to_control_frame;
   const Similarity Tinv = T.inverse();
-  const LevelData& level = *ctx.levels[ctx.fit_level];
+  const LevelData& level = ctx.level(ctx.fit_level);
   const SparseOperator& S = level.op.S;
   const int n = ctx.control.num_vertices();
   const int nr = static_cast<int>(S.rows());
@@ -424,8 +538,8 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
     // Pairs against the current estimate: the mark moves the surface by a fair fraction of the
     // refined edge length, so pairs with the original surface would be biased.
     const Points R = it == 0 ? level.points : apply_subdivision(level.op, x);
-    const TriangleIndex current_tree(R, ctx.fit_tris);
-    const TriangleIndex& surface = it == 0 ? *ctx.fit_tree : current_tree;
+    const TriangleIndex current_tree(R, fit.tris);
+    const TriangleIndex& surface = it == 0 ? *fit.tree : current_tree;
     std::vector<Trip> t;
     std::vector<double> b;
     // One point-to-plane row: normal . (sum_c w_c (S x)_{v_c} - target) = 0, over the refined
@@ -446,13 +560,13 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
       if (it == 0) {
         h = surface.closest(q);
       } else {
-        const auto& f = ctx.fit_tris[h.triangle];
+        const auto& f = fit.tris[h.triangle];
         const Eigen::Vector3d on = h.barycentric[0] * R.row(f[0]).transpose() + h.barycentric[1] * R.row(f[1]).transpose() +
                                    h.barycentric[2] * R.row(f[2]).transpose();
         h = surface.closest(q, TriangleHint{h.triangle, on});
       }
       if (!(h.distance <= max_d)) continue;
-      const auto& f = ctx.fit_tris[h.triangle];
+      const auto& f = fit.tris[h.triangle];
       const Eigen::Vector3d p0 = R.row(f[0]), p1 = R.row(f[1]), p2 = R.row(f[2]);
       const Eigen::Vector3d normal = (p1 - p0).cross(p2 - p0).normalized();
       if (!normal.allFinite()) continue;
@@ -520,9 +634,10 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
   const int ns = suspect.num_vertices();
 
   // Same numbering: vertices correspond by index.
+  // Vertex counts come from the topology: only a level that could be the suspect's is built.
   for (int l = 0; l <= top && !o.force_surface_fit; ++l) {
-    const LevelData& level = *ctx.levels[l];
-    if (level.points.rows() != ns) continue;
+    if (ctx.vertex_counts[static_cast<size_t>(l)] != ns) continue;
+    const LevelData& level = ctx.level(l);
     // A level L-1 file refined once more (by us or OpenSubdiv) numbers its edge points in the
     // file's edge order: renumbered into the level-L order it is an in-order suspect too.
     Points in_order;
@@ -553,7 +668,7 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
       // crease tags (a decoded file has none); solving that with the creased S_L biases every
       // control point near a crease.
       // Keep whichever hypothesis explains the suspect better (a tie keeps the creased one).
-      const LevelData& below = *ctx.levels[static_cast<size_t>(l - 1)];
+      const LevelData& below = ctx.level(l - 1);
       Points xs = solve_smooth(below, level, l, p);
       const double residual = rms_rows(apply_smooth(below, level, l, xs), p) / ctx.diagonal;
       if (residual < r.residual_rms) {
@@ -568,9 +683,9 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
   }
   // Same vertices, numbering lost (STL welding, re-export): mutual nearest neighbours.
   for (int l = 0; l <= top && !o.force_surface_fit; ++l) {
-    const LevelData& level = *ctx.levels[l];
-    const double nr = static_cast<double>(level.points.rows());
+    const double nr = static_cast<double>(ctx.vertex_counts[static_cast<size_t>(l)]);
     if (std::abs(ns - nr) > o.count_tolerance * nr) continue;
+    const LevelData& level = ctx.level(l);
     const Matching m = match_vertices(level, suspect.points, o);
     if (m.matched < o.min_matched_fraction * nr) continue;
     Resynchronized r = from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m, o.matching_rounds);
@@ -578,7 +693,7 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
       // Re-subdividing a decoded file numbers its edge points by that file's own edge order, so
       // this leak arrives here rather than in the same-numbering branch. Same test as there; a
       // hypothesis that pairs fewer vertices does not win by its smaller residual.
-      Resynchronized alt = from_matching(ctx, Hypothesis{&level, ctx.levels[static_cast<size_t>(l - 1)].get(), l, true},
+      Resynchronized alt = from_matching(ctx, Hypothesis{&level, &ctx.level(l - 1), l, true},
                                          suspect.points, m, o.matching_rounds);
       if (alt.matched_fraction >= r.matched_fraction && alt.residual_rms < r.residual_rms) r = std::move(alt);
     }

@@ -29,6 +29,7 @@
 // weight (fit_similarity_preserving_mark), so it takes little of the mark with it.
 // Measured behaviour and limits: docs/registration.md.
 #pragma once
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -78,14 +79,20 @@ struct Resynchronized {
 };
 
 // Everything that depends only on the original control polyhedron (subdivision operators and
-// factorised normal equations per level, refined original surfaces, AABB trees): built once per
-// asset, immutable afterwards, safe to share between threads.
+// factorised normal equations per level, refined original surfaces, AABB trees), for one asset.
+// Each level, and the fit surface, is built on first use: resynchronize() builds only the level
+// the suspect's vertex count names (and the one below, for the re-subdivided hypothesis) or the
+// fit surface; level 4 alone is about three quarters of all levels. Once built nothing changes,
+// so a context is safe to share between threads (a level two threads ask for at once is built
+// once, the second waits). Results do not depend on what was built before.
 class ResyncContext {
  public:
   // control: original polyhedron with creases/corners, in the frame results are wanted in.
   // fit_level: subdivision level of the original surface that remeshed suspects are fitted
-  // against (clamped to [1, max_level]). Throws InputError for an unusable control mesh and
-  // std::invalid_argument for max_level outside [0, kMaxSubdivisionLevels].
+  // against (clamped to [1, max_level]). Throws InputError for an unusable control mesh (its
+  // topology is checked here) and std::invalid_argument for max_level outside
+  // [0, kMaxSubdivisionLevels]. A level whose normal equations are singular throws InputError
+  // when it is first needed.
   ResyncContext(const Mesh& control, int max_level = 4, int fit_level = 3);
   ~ResyncContext();
   ResyncContext(ResyncContext&&) noexcept;
@@ -95,9 +102,15 @@ class ResyncContext {
   int max_level() const;
   int fit_level() const;
   double diagonal() const;  // control bounding-box diagonal
-  // Level 0 is the control itself; levels 1..max_level() the refined original.
+  int vertex_count(int level) const;  // of the refined original, known without building it
+  // Level 0 is the control itself; levels 1..max_level() the refined original (built if needed;
+  // std::out_of_range outside [0, max_level()]).
   const SubdivisionOperator& subdivision(int level) const;
   const Points& refined_points(int level) const;
+  bool level_built(int level) const;
+  void build_all() const;  // every level and the fit surface now (benchmarks, measurements)
+  // Approximate heap bytes held, growing as levels are built (a cache budgets with it).
+  std::size_t memory_bytes() const;
 
   struct Impl;
   const Impl& impl() const { return *impl_; }

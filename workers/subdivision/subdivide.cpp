@@ -516,6 +516,26 @@ Mesh to_mesh(const Level& L, const std::vector<int>& tagged_corners) {
 
 namespace {
 
+// Vertex count after 0..levels steps: V + F' + E per step (F' = non-triangles; all faces become
+// quads or triangles after one step). Stops growing past the limit (no overflow).
+std::vector<long long> vertex_counts(const Level& L, int levels) {
+  long long v = L.nv, e = L.ne(), q = 0, t = 0, c = 0;
+  for (int f = 0; f < L.nf(); ++f) (L.fsize(f) == 3 ? t : q)++, c += L.fsize(f);
+  std::vector<long long> out{v};
+  for (int k = 0; k < levels; ++k) {
+    if (v <= kMaxRefinedVertices) {
+      const long long corners_nontri = c - 3 * t;
+      v = v + q + e;
+      e = 2 * e + c;
+      t = 4 * t;
+      q = corners_nontri;
+      c = 3 * t + 4 * q;
+    }
+    out.push_back(v);
+  }
+  return out;
+}
+
 struct Steps {
   std::vector<SparseOperator> steps;
   Mesh refined;  // topology only
@@ -528,23 +548,10 @@ Steps build_steps(const Mesh& control, int levels, Points* points) {
                                 std::to_string(kMaxSubdivisionLevels) + "], got " +
                                 std::to_string(levels));
   Level L = make_base_level(control);
-  {
-    // Vertex count after `levels` steps: V + F' + E per step (F' = non-triangles); bound it
-    // before allocating anything (all faces become quads or triangles after one step).
-    long long v = L.nv, e = L.ne(), q = 0, t = 0, c = 0;
-    for (int f = 0; f < L.nf(); ++f) (L.fsize(f) == 3 ? t : q)++, c += L.fsize(f);
-    for (int k = 0; k < levels; ++k) {
-      const long long corners_nontri = c - 3 * t;
-      v = v + q + e;
-      e = 2 * e + c;
-      t = 4 * t;
-      q = corners_nontri;
-      c = 3 * t + 4 * q;
-      if (v > kMaxRefinedVertices)
-        throw std::invalid_argument("subdivision to level " + std::to_string(levels) + " would make " +
-                                    "more than " + std::to_string(kMaxRefinedVertices) + " vertices");
-    }
-  }
+  // Bound the result before allocating anything.
+  if (vertex_counts(L, levels).back() > kMaxRefinedVertices)
+    throw std::invalid_argument("subdivision to level " + std::to_string(levels) + " would make " +
+                                "more than " + std::to_string(kMaxRefinedVertices) + " vertices");
   {
     Adjacency a = adjacency(L);
     mark_nonmanifold_vertices(L, a);
@@ -595,6 +602,13 @@ SubdivisionOperator build_subdivision(const Mesh& control, int levels) {
   op.refined.points = apply_steps(st.steps, control.points);
   op.steps = std::move(st.steps);
   return op;
+}
+
+std::vector<long long> subdivision_vertex_counts(const Mesh& control, int levels) {
+  if (levels < 0 || levels > kMaxSubdivisionLevels)
+    throw std::invalid_argument("subdivision levels must be in [0, " + std::to_string(kMaxSubdivisionLevels) +
+                                "], got " + std::to_string(levels));
+  return vertex_counts(make_base_level(control), levels);
 }
 
 Points apply_subdivision(const SubdivisionOperator& op, const Points& control_points) {

@@ -40,6 +40,12 @@ constexpr long long kMaxOperatorTerms = 100'000'000;  // products summed while c
 // (refined vertices, or terms while composing S around very high-valence vertices).
 SubdivisionOperator build_subdivision(const Mesh& control, int levels);
 
+// Vertex counts of levels 0..levels (element L: rows of build_subdivision(control, L).S) from
+// the topology alone, without building anything: a caller can tell which level a mesh could be
+// before paying for that level. Same InputErrors as build_subdivision (the topology is checked);
+// counts beyond kMaxRefinedVertices are not exact (the caller would be refused the level anyway).
+std::vector<long long> subdivision_vertex_counts(const Mesh& control, int levels);
+
 // Refined positions for new control points of the same topology (faster than op.S * points).
 Points apply_subdivision(const SubdivisionOperator& op, const Points& control_points);
 
