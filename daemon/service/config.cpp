@@ -174,9 +174,10 @@ Config parse_config(const std::string& text, const std::string& source, const st
     if (!d.is_object()) {
       c.error("detect", "must be an object");
     } else {
-      c.known(d, "detect.", {"p_threshold", "max_candidates"});
+      c.known(d, "detect.", {"p_threshold", "max_candidates", "context_cache_mb"});
       c.number(d, "detect.", "p_threshold", cfg.p_threshold, 0, 0.01, true);
       c.integer(d, "detect.", "max_candidates", cfg.max_candidates, 1, 100);
+      c.integer(d, "detect.", "context_cache_mb", cfg.context_cache_mb, 0, 1048576);
     }
   }
   if (cfg.heartbeat_seconds * 2 > cfg.lease_seconds)
@@ -241,6 +242,7 @@ std::map<std::string, std::string> flatten(const Config& c) {
           {"compression.stream_bits", std::to_string(c.stream_bits)},
           {"detect.p_threshold", num(c.p_threshold)},
           {"detect.max_candidates", std::to_string(c.max_candidates)},
+          {"detect.context_cache_mb", std::to_string(c.context_cache_mb)},
           {"log_level", c.log_level},
           {"log_file", c.log_file}};
 }

@@ -39,6 +39,9 @@ struct Config {
   int stream_bits = 16;             // compression.stream_bits: quantisation of the .mmc copies
   double p_threshold = 1e-6;
   int max_candidates = 3;
+  // detect.context_cache_mb: resynchronisation contexts kept between detect jobs, shared by the
+  // workers (service/context_cache.h); contexts in use are never evicted.
+  int context_cache_mb = 512;
   // Logging.
   std::string log_level = "info";  // trace debug info warn error critical off
   std::string log_file;            // "" = stderr (journald under systemd)

@@ -13,7 +13,6 @@
 #include <set>
 #include <spdlog/spdlog.h>
 #include <limits>
-#include <list>
 #include <map>
 #include <memory>
 #include <optional>
@@ -374,33 +373,23 @@ struct Aligned {
   double matched_fraction = 0;
 };
 
-// Building a resynchronisation context (subdivision operators, factorisations, AABB trees) costs
-// more than a detection, so each worker thread keeps its last few, keyed by the polyhedron's
-// content address (a blob never changes). Per thread: no lock on the detection path, and a
-// context is never used by two jobs at once.
-std::shared_ptr<const ResyncContext> resync_context(const std::string& polyhedron_blob,
-                                                    const jobs::PreparedAsset& asset) {
-  thread_local std::list<std::pair<std::string, std::shared_ptr<const ResyncContext>>> lru;
-  constexpr std::size_t kKeep = 4;
-  for (auto it = lru.begin(); it != lru.end(); ++it)
-    if (it->first == polyhedron_blob) {
-      lru.splice(lru.begin(), lru, it);
-      return lru.front().second;
-    }
-  auto ctx = std::make_shared<const ResyncContext>(jobs::make_resync_context(asset));
-  lru.emplace_front(polyhedron_blob, ctx);
-  if (lru.size() > kKeep) lru.pop_back();
-  return ctx;
-}
-
 Aligned align_to(const std::string& polyhedron_blob, const jobs::PreparedAsset& asset, const Mesh& suspect,
-                 const std::string& name) {
+                 const std::string& name, ContextCache* contexts) {
   Aligned a;
   try {
-    auto ctx = resync_context(polyhedron_blob, asset);
+    // Building a context costs more than a detection, so the process keeps them, keyed by the
+    // polyhedron's content address (a blob never changes); without a cache, one per use.
+    auto build = [&asset] { return jobs::make_resync_context(asset); };
+    std::shared_ptr<const ResyncContext> ctx =
+        contexts ? contexts->get(polyhedron_blob, build) : std::make_shared<const ResyncContext>(build());
     ResyncOptions o;
     o.source = name;
     Resynchronized r = jobs::resynchronize_suspect(*ctx, suspect, o);
+    std::string built;
+    for (int l = 0; l <= ctx->max_level(); ++l) built += ctx->level_built(l) ? std::to_string(l) : "-";
+    spdlog::debug("resync {} to polyhedron {}: {} level {}; context {:.1f} MB, levels {} built", name,
+                  polyhedron_blob.substr(0, 12), r.method, r.level,
+                  static_cast<double>(ctx->memory_bytes()) / (1 << 20), built);
     a.points = std::move(r.points);
     a.method = r.method;
     a.level = r.level;
@@ -444,8 +433,10 @@ std::optional<jobs::ShapeSignature> asset_signature(store::Store& st, std::int64
 
 }  // namespace
 
-store::JobRecords run_detect(store::Store& st, const store::Job& job, const HandlerContext& ctx) {
+store::JobRecords run_detect(store::Store& st, const store::Job& job, const HandlerContext& ctx,
+                             ContextCache* contexts) {
   const Config& cfg = ctx.config;
+  if (contexts) contexts->set_budget(static_cast<std::size_t>(cfg.context_cache_mb) << 20);
   json p = parse_payload(job);
   std::string name = fs::path(str_field(p, "name", job)).filename().string();
   std::string sha;
@@ -522,7 +513,7 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
       Tried t;
       t.asset_id = asset_id;
       t.polyhedron_id = row->id;
-      t.aligned = align_to(row->polyhedron_blob, prep, suspect, name);
+      t.aligned = align_to(row->polyhedron_blob, prep, suspect, name, contexts);
       t.copies = std::move(copies);
       std::vector<jobs::CopyCandidate> cands;
       for (const auto& c : t.copies) {
@@ -642,13 +633,23 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
   spdlog::info("detect {}: {} (match: {}; {} copies tried; best corrected p {:.3g}; resync {} residual {:.3g})", name,
                d.verdict, match.empty() ? "none" : match, total, d.p_value ? *d.p_value : 1.0,
                best_t ? best_t->aligned.method : "none", best_t ? best_t->aligned.residual : 0.0);
+  if (contexts) {
+    const ContextCache::Stats cs = contexts->stats();
+    spdlog::debug("resync contexts: {} held ({} in use), {:.1f} of {:.0f} MB; {} built, {} reused, {} evicted",
+                  cs.entries, cs.in_use, static_cast<double>(cs.bytes) / (1 << 20),
+                  static_cast<double>(cs.budget) / (1 << 20), cs.builds, cs.hits, cs.evictions);
+  }
   return rec;
 }
 
 HandlerMap default_handlers() {
   HandlerMap m;
   m["protect"] = run_protect;
-  m["detect"] = run_detect;
+  // One cache for every worker thread the map is handed to (copies share it).
+  auto contexts = std::make_shared<ContextCache>(static_cast<std::size_t>(Config{}.context_cache_mb) << 20);
+  m["detect"] = [contexts](store::Store& st, const store::Job& job, const HandlerContext& ctx) {
+    return run_detect(st, job, ctx, contexts.get());
+  };
   m["noop"] = [](store::Store&, const store::Job&, const HandlerContext&) { return store::JobRecords{}; };
   return m;
 }

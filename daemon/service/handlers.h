@@ -17,6 +17,7 @@
 #include <string>
 
 #include "service/config.h"
+#include "service/context_cache.h"
 #include "store/store.h"
 
 namespace mm::service {
@@ -33,10 +34,14 @@ struct HandlerContext {
 using Handler = std::function<store::JobRecords(store::Store&, const store::Job&, const HandlerContext&)>;
 using HandlerMap = std::map<std::string, Handler>;
 
-HandlerMap default_handlers();  // protect, detect, noop
+// protect, detect, noop. The detect handler keeps resynchronisation contexts in one ContextCache
+// that every copy of the map shares (all workers of a pool), budgeted by detect.context_cache_mb.
+HandlerMap default_handlers();
 
 store::JobRecords run_protect(store::Store& st, const store::Job& job, const HandlerContext& ctx);
-store::JobRecords run_detect(store::Store& st, const store::Job& job, const HandlerContext& ctx);
+// contexts: where resynchronisation contexts are kept between uses (null: built for each use).
+store::JobRecords run_detect(store::Store& st, const store::Job& job, const HandlerContext& ctx,
+                             ContextCache* contexts = nullptr);
 
 // Submitting: the file's bytes go into the blob store first (so the job does not depend on the
 // file staying where it is), then the job is enqueued with an idempotency key derived from what
