@@ -56,7 +56,7 @@ int auto_bits(const Mesh& control, double tolerance) {
   const double side = (hi - lo).maxCoeff(), diagonal = (hi - lo).norm();
   if (!(side > 0)) return 12;
   for (int bits = kMinQuantBits; bits < kMaxQuantBits; ++bits) {
-    const double step = side / static_cast<double>((1u << bits) - 1u);
+    const double step = quantization_for(control.points, bits).step;  // the grid encode() uses
     if (0.5 * step * std::sqrt(3.0) <= 0.2 * tolerance * diagonal) return bits;
   }
   return kMaxQuantBits;

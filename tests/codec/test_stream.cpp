@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -28,21 +29,24 @@ std::vector<std::vector<int>> canonical(std::vector<std::vector<int>> faces) {
 }
 
 // Round trip: quantised values bit-exact, topology identical, re-encoding byte-identical.
-void expect_round_trip(const mm::Mesh& m, int bits, const std::string& name) {
-  SCOPED_TRACE(name + " at " + std::to_string(bits) + " bits");
+void expect_round_trip(const mm::Mesh& m, int bits, const std::string& name, int version = 3) {
+  SCOPED_TRACE(name + " at " + std::to_string(bits) + " bits, version " + std::to_string(version));
   mm::CodecParams params;
   params.quant_bits = bits;
+  params.format_version = version;
   params.metadata = {{"asset", "A-17"}, {"copy", "c0042"}};
+  if (bits % 2 == 0) params.metadata["levels"] = "3";  // version 3 keeps it in the header
   const auto bytes = mm::encode(m, params);
   const mm::DecodedStream d = mm::decode(bytes, name);
+  EXPECT_EQ(d.version, version);
 
-  const mm::Quantization q = mm::quantization_for(m.points, bits);
+  const mm::Quantization q = version >= 3 ? mm::quantization_for(m.points, bits) : mm::box_quantization_for(m.points, bits);
   EXPECT_EQ(d.quantization.bits, bits);
   EXPECT_EQ(d.quantization.step, q.step);
   EXPECT_EQ(d.quantization.offset, q.offset);
   EXPECT_EQ(d.grid, mm::quantize(m.points, q));
   // Exact equality of doubles: decode(encode(m)) == dequantize(quantize(m)).
-  EXPECT_TRUE(d.mesh.points == mm::quantized_positions(m.points, bits));
+  EXPECT_TRUE(d.mesh.points == mm::dequantize(mm::quantize(m.points, q), q));
   EXPECT_LE((d.mesh.points - m.points).cwiseAbs().maxCoeff(), 0.5 * q.step * (1 + 1e-9));
   EXPECT_EQ(canonical(d.mesh.faces), canonical(m.faces));  // same oriented faces
   EXPECT_EQ(d.mesh.creases, sorted_creases(m));
@@ -56,10 +60,42 @@ void expect_round_trip(const mm::Mesh& m, int bits, const std::string& name) {
 }  // namespace
 
 TEST(Stream, RoundTripSynthetic) {
-  for (int bits : {8, 10, 12, 16, 20, 24}) {
-    expect_round_trip(mm::test::crease_cube(), bits, "cube");
-    expect_round_trip(mm::test::wavy_grid(17, 11, 3), bits, "grid");
-    expect_round_trip(mm::test::wavy_grid(60, 45, 9), bits, "big grid");
+  for (int version : {3, 2})
+    for (int bits : {8, 10, 12, 16, 20, 24}) {
+      expect_round_trip(mm::test::crease_cube(), bits, "cube", version);
+      expect_round_trip(mm::test::wavy_grid(17, 11, 3), bits, "grid", version);
+      expect_round_trip(mm::test::wavy_grid(60, 45, 9), bits, "big grid", version);
+    }
+}
+
+TEST(Stream, RoundTripCopiesQuadsAndComponents) {
+  // Version 3's coordinate copying, quad predictions and several components: an axis-aligned
+  // box of quads (every coordinate repeats a neighbour's), beside a grid and a lone triangle.
+  mm::Mesh m = mm::test::crease_cube();
+  const mm::Mesh g = mm::test::wavy_grid(7, 5, 2);
+  const int base = m.num_vertices();
+  m.points.conservativeResize(base + g.num_vertices() + 3, 3);
+  m.points.block(base, 0, g.num_vertices(), 3) = g.points;
+  m.points.bottomRows(3) << 9, 9, 9, 10, 9, 9, 9, 10, 9.5;
+  for (auto f : g.faces) {
+    for (int& v : f) v += base;
+    m.faces.push_back(f);
+  }
+  const int t = base + g.num_vertices();
+  m.faces.push_back({t, t + 1, t + 2});
+  for (auto [a, b] : g.creases) m.creases.emplace_back(a + base, b + base);
+  for (int bits : {8, 12, 24}) {
+    expect_round_trip(m, bits, "components");
+    mm::Mesh r = m;  // and renumbered as compress numbers its control meshes
+    const auto order = mm::traversal_vertex_order(m);
+    std::vector<int> where(order.size());
+    for (size_t k = 0; k < order.size(); ++k) where[order[k]] = static_cast<int>(k);
+    for (size_t k = 0; k < order.size(); ++k) r.points.row(static_cast<int>(k)) = m.points.row(order[k]);
+    for (auto& f : r.faces)
+      for (int& v : f) v = where[v];
+    for (auto& [a, b] : r.creases) a = where[a], b = where[b];
+    for (int& c : r.corners) c = where[c];
+    expect_round_trip(r, bits, "components renumbered");
   }
 }
 
@@ -72,6 +108,7 @@ TEST(Stream, RoundTripSharedMeshes) {
     for (size_t e = 0; e < edges.size(); e += 7) m.creases.push_back(edges[e]);
     m.corners = {0, m.num_vertices() / 2, m.num_vertices() - 1};
     for (int bits : {10, 12, 16, 24}) expect_round_trip(m, bits, name);
+    expect_round_trip(m, 12, name, 2);
   }
 }
 
@@ -123,7 +160,12 @@ TEST(Stream, EmptyAndSingleVertexMeshes) {
   mm::Mesh one;
   one.points.resize(1, 3);
   one.points << 4, 5, 6;
-  EXPECT_TRUE(mm::decode(mm::encode(one), "one").mesh.points == one.points);
+  const auto d1 = mm::decode(mm::encode(one), "one");
+  EXPECT_TRUE(d1.mesh.points == mm::quantized_positions(one.points, 12));
+  EXPECT_LE((d1.mesh.points - one.points).cwiseAbs().maxCoeff(), std::ldexp(1.0, -40));
+  mm::CodecParams v2;
+  v2.format_version = 2;  // the bounding-box grid keeps a single point exactly
+  EXPECT_TRUE(mm::decode(mm::encode(one, v2), "one").mesh.points == one.points);
 }
 
 TEST(Stream, EncoderRejectsWhatTheFormatCannotHold) {
@@ -164,6 +206,9 @@ TEST(Stream, EncoderRejectsWhatTheFormatCannotHold) {
   p = {};
   p.metadata["k"] = std::string(2000, 'v');
   expect_reject(good, "too long", p);
+  p = {};
+  p.format_version = 1;
+  expect_reject(good, "format version 1 cannot be written", p);
 }
 
 TEST(Stream, FilesAreWrittenAtomicallyAndReadBack) {
@@ -197,9 +242,12 @@ TEST(Stream, SizesAreReported) {
     mm::CodecParams p;
     p.quant_bits = bits;
     const size_t size = mm::encode(m, p).size();
+    p.format_version = 2;
+    const size_t size2 = mm::encode(m, p).size();
     std::cout << "fandisk_quads.off (" << m.num_vertices() << " vertices, " << m.num_faces()
-              << " faces) at " << bits << " bits: " << size << " bytes\n";
-    // Far below the 3 x 4-byte float + 4 x 4-byte index raw size.
+              << " faces) at " << bits << " bits: " << size << " bytes (version 2: " << size2 << ")\n";
+    // Far below the 3 x 4-byte float + 4 x 4-byte index raw size, and below version 2.
     EXPECT_LT(size, m.num_vertices() * 12u + m.num_faces() * 16u);
+    EXPECT_LT(size, size2);
   }
 }

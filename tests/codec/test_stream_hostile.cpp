@@ -2,6 +2,7 @@
 // that happen to form a valid stream, decode to a consistent mesh), never crash or over-allocate.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <chrono>
 #include <cstdlib>
 #include <random>
@@ -9,6 +10,7 @@
 #include "codec/codec_test_meshes.h"
 #include "codec/stream.h"
 #include "codec/rice.h"
+#include "codec/bytes.h"
 #include "codec/stream_detail.h"
 #include "common/shared_meshes.h"
 #include "meshio/read_mesh.h"
@@ -17,10 +19,47 @@ namespace cd = mm::codec_detail;
 
 namespace {
 
+// Version 2 (zstd payload; split() and join() build hostile variants behind a valid checksum).
 std::vector<std::uint8_t> valid_stream() {
   mm::CodecParams p;
+  p.format_version = 2;
   p.metadata = {{"asset", "A-17"}, {"copy", "c0042"}};
   return mm::encode(mm::test::wavy_grid(9, 7, 5), p);
+}
+
+// Version 3 (range-coded body), with creases, corners, metadata and the levels header field.
+std::vector<std::uint8_t> valid_stream_v3() {
+  mm::CodecParams p;
+  p.metadata = {{"asset", "A-17"}, {"copy", "c0042"}, {"levels", "3"}};
+  return mm::encode(mm::test::wavy_grid(9, 7, 5), p);
+}
+
+// A version 3 stream from header fields and body bytes, with a valid checksum.
+std::vector<std::uint8_t> v3_stream(int packed_bits, std::int64_t exponent, std::array<std::int64_t, 3> origin,
+                                    std::uint64_t vertices, std::uint64_t faces,
+                                    const std::vector<std::uint8_t>& body) {
+  cd::Writer w;
+  w.raw(cd::kMagic, 4);
+  w.u8(3);
+  w.u8(static_cast<std::uint8_t>(packed_bits));
+  w.varint(cd::zigzag(exponent));
+  for (auto o : origin) w.varint(cd::zigzag(o));
+  w.varint(vertices);
+  w.varint(faces);
+  w.raw(body.data(), body.size());
+  w.bytes.resize(w.bytes.size() + 4);
+  const std::uint32_t crc = cd::checksum(w.bytes.data(), w.bytes.size() - 4);
+  for (int i = 0; i < 4; ++i) w.bytes[w.bytes.size() - 4 + i] = static_cast<std::uint8_t>(crc >> (8 * i));
+  return std::move(w.bytes);
+}
+
+// Offset of the range-coded body in a version 3 stream (after six varints).
+std::size_t v3_body_offset(const std::vector<std::uint8_t>& s) {
+  std::size_t at = 6;
+  for (int k = 0; k < 6; ++k)
+    while (s[at++] & 0x80) {
+    }
+  return at;
 }
 
 // Recomputes the trailing CRC so damage behind the checksum reaches the deeper checks.
@@ -63,21 +102,88 @@ void expect_consistent(const mm::DecodedStream& d) {
 }  // namespace
 
 TEST(StreamHostile, EveryTruncationIsRejected) {
-  const auto s = valid_stream();
-  for (size_t len = 0; len < s.size(); ++len) {
-    std::vector<std::uint8_t> t(s.begin(), s.begin() + len);
-    EXPECT_NE(rejection(t), "") << "truncated to " << len;
-  }
+  for (const auto& s : {valid_stream(), valid_stream_v3()})
+    for (size_t len = 0; len < s.size(); ++len) {
+      std::vector<std::uint8_t> t(s.begin(), s.begin() + len);
+      EXPECT_NE(rejection(t), "") << "truncated to " << len;
+    }
 }
 
 TEST(StreamHostile, EveryBitFlipIsRejected) {
-  const auto s = valid_stream();
-  for (size_t i = 0; i < s.size(); ++i)
-    for (int bit = 0; bit < 8; ++bit) {
+  for (const auto& s : {valid_stream(), valid_stream_v3()})
+    for (size_t i = 0; i < s.size(); ++i)
+      for (int bit = 0; bit < 8; ++bit) {
+        auto t = s;
+        t[i] ^= static_cast<std::uint8_t>(1u << bit);
+        EXPECT_NE(rejection(t), "") << "byte " << i << " bit " << bit;
+      }
+}
+
+TEST(StreamHostile, Version3HeaderFields) {
+  const auto s = valid_stream_v3();
+  ASSERT_EQ(s[4], 3);
+  ASSERT_NO_THROW(mm::decode(s, "valid"));
+  const std::vector<std::uint8_t> body = {0x5A, 0x31};
+  // Quantisation bits beyond 24 (packed 17 = 25 bits).
+  EXPECT_REJECTED_WITH((v3_stream(17, -8, {0, 0, 0}, 3, 1, body)), "quantisation bits 25");
+  EXPECT_REJECTED_WITH((v3_stream(0, -1001, {0, 0, 0}, 3, 1, body)), "cell exponent -1001 outside");
+  EXPECT_REJECTED_WITH((v3_stream(0, 1001, {0, 0, 0}, 3, 1, body)), "cell exponent 1001 outside");
+  EXPECT_REJECTED_WITH((v3_stream(0, -8, {0, std::int64_t{1} << 50, 0}, 3, 1, body)), "cell origin");
+  EXPECT_REJECTED_WITH((v3_stream(0, -8, {0, -(std::int64_t{1} << 50) - 1, 0}, 3, 1, body)), "cell origin");
+  // A finite exponent whose far cells are not finite doubles.
+  EXPECT_REJECTED_WITH((v3_stream(0, 1000, {0, (std::int64_t{1} << 50) - 300, 0}, 3, 1, body)), "finite range");
+  EXPECT_REJECTED_WITH((v3_stream(0, -8, {0, 0, 0}, 1u << 25, 1, body)), "vertex count 33554432 exceeds the limit");
+  EXPECT_REJECTED_WITH((v3_stream(0, -8, {0, 0, 0}, 3, 1ull << 26, body)), "face count");
+  // Counts a tiny body cannot justify are refused before anything is allocated.
+  EXPECT_REJECTED_WITH((v3_stream(0, -8, {0, 0, 0}, 1u << 20, 0, body)), "more than a 2-byte body can hold");
+  EXPECT_REJECTED_WITH((v3_stream(0, -8, {0, 0, 0}, 40000, 40000, body)), "more than a 2-byte body can hold");
+  // Canonical ending: no trailing zero byte; nothing after the last byte the decoder reads.
+  EXPECT_REJECTED_WITH((v3_stream(0, -8, {0, 0, 0}, 0, 0, {0x12, 0x00})), "ends in a zero byte");
+  auto t = s;
+  t.insert(t.end() - 4, 16, 0x55);
+  reseal(t);
+  EXPECT_NE(rejection(t), "");
+  t = s;
+  t[4] = 4;
+  reseal(t);
+  EXPECT_REJECTED_WITH(t, "unsupported format version 4");
+  // Truncated header varints behind a valid checksum.
+  std::vector<std::uint8_t> u = {'M', 'M', 'C', 'S', 3, 0, 0x8F, 0x8F, 0x8F, 0x8F, 0x8F, 0x8F};
+  u.resize(u.size() + 4);
+  reseal(u);
+  EXPECT_REJECTED_WITH(u, "truncated");
+}
+
+TEST(StreamHostile, Version3CheapBodiesStayWithinTheirBound) {
+  // An empty body (all zero bits) decodes zero-residual vertices for free; within the floor
+  // (2^16 vertices and faces) that is a valid stream whose memory follows the counts.
+  const auto d = mm::decode(v3_stream(0, -8, {5, 6, 7}, 60000, 0, {}), "cheap");
+  EXPECT_EQ(d.mesh.num_vertices(), 60000);
+  EXPECT_EQ(d.grid.rows(), 60000);
+  // An empty mesh has an empty body: the decoder reads zeros past the end.
+  const auto e = mm::decode(v3_stream(0, -8, {0, 0, 0}, 0, 0, {}), "empty");
+  EXPECT_EQ(e.mesh.num_vertices(), 0);
+}
+
+TEST(StreamHostile, Version3BodyDamageBehindAValidChecksum) {
+  // Every single-byte change of the body, resealed: rejected, or a consistent mesh.
+  const auto s = valid_stream_v3();
+  const std::size_t body = v3_body_offset(s);
+  int rejected = 0, decoded = 0;
+  for (std::size_t i = body; i + 4 < s.size(); ++i)
+    for (int v : {0x00, 0xFF, 0x80, 0x01, s[i] ^ 0x10}) {
       auto t = s;
-      t[i] ^= static_cast<std::uint8_t>(1u << bit);
-      EXPECT_NE(rejection(t), "") << "byte " << i << " bit " << bit;
+      t[i] = static_cast<std::uint8_t>(v);
+      reseal(t);
+      try {
+        expect_consistent(mm::decode(t, "body"));
+        ++decoded;
+      } catch (const mm::InputError&) {
+        ++rejected;
+      }
     }
+  EXPECT_GT(rejected, 0);
+  std::cout << "version 3 body damage: " << rejected << " rejected, " << decoded << " decoded consistently\n";
 }
 
 TEST(StreamHostile, BadMagicVersionAndTrailingBytes) {
@@ -86,9 +192,9 @@ TEST(StreamHostile, BadMagicVersionAndTrailingBytes) {
   t[0] = 'X';
   EXPECT_REJECTED_WITH(t, "bad magic");
   t = s;
-  t[4] = 3;
+  t[4] = 4;
   reseal(t);
-  EXPECT_REJECTED_WITH(t, "unsupported format version 3");
+  EXPECT_REJECTED_WITH(t, "unsupported format version 4");
   t = s;
   t[4] = 0;
   reseal(t);
@@ -344,10 +450,15 @@ TEST(StreamHostile, SeededFuzzNeverCrashes) {
   // Three kinds of damage, 20k mutants in all: raw byte damage (mostly caught by the CRC),
   // damage with the CRC recomputed (reaches the header and frame checks), and damage to the
   // decompressed payload re-wrapped in a valid frame and CRC (reaches the payload checks).
-  std::vector<std::vector<std::uint8_t>> seeds = {valid_stream(), mm::encode(mm::test::crease_cube())};
+  mm::CodecParams v2;
+  v2.format_version = 2;
+  std::vector<std::vector<std::uint8_t>> seeds = {valid_stream(), mm::encode(mm::test::crease_cube(), v2),
+                                                  valid_stream_v3(), mm::encode(mm::test::crease_cube())};
   if (mm::test::shared_meshes_present()) {
     mm::CodecParams p;
     p.quant_bits = 16;
+    seeds.push_back(mm::encode(mm::read_mesh(mm::test::shared_mesh("chamfer-cube.off")), p));
+    p.format_version = 2;
     seeds.push_back(mm::encode(mm::read_mesh(mm::test::shared_mesh("chamfer-cube.off")), p));
   }
   std::mt19937_64 rng(20261122);
@@ -378,6 +489,15 @@ TEST(StreamHostile, SeededFuzzNeverCrashes) {
     } else if (kind == 1) {
       t = seed;
       mutate(t);
+      reseal(t);
+    } else if (seed[4] == 3) {
+      // Version 3: damage the range-coded body (or the header varints) and reseal.
+      t = seed;
+      std::vector<std::uint8_t> tail(t.begin() + 6, t.end() - 4);
+      mutate(tail);
+      t.resize(6);
+      t.insert(t.end(), tail.begin(), tail.end());
+      t.resize(t.size() + 4);
       reseal(t);
     } else {
       cd::Parts parts = cd::split(seed.data(), seed.size(), "seed");

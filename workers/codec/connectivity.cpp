@@ -42,15 +42,63 @@ class Neighbours {
 };
 
 using Gate = std::pair<int, int>;
+struct QueuedGate {
+  int a, b, from_size;
+};
 
-void push_gates(std::deque<Gate>& gates, const std::vector<int>& f, std::size_t first) {
-  for (std::size_t k = first; k < f.size(); ++k) gates.emplace_back(f[k], f[(k + 1) % f.size()]);
+void push_gates(std::deque<QueuedGate>& gates, const std::vector<int>& f, std::size_t first) {
+  for (std::size_t k = first; k < f.size(); ++k)
+    gates.push_back({f[k], f[(k + 1) % f.size()], static_cast<int>(f.size())});
+}
+
+// Rank of a known vertex v under the version 2 rules (smallest of both lists), 0 if in neither.
+std::uint64_t rank_of(const Neighbours& nb, int v, int anchor, int other) {
+  const auto& l1 = nb.of(anchor);
+  const auto& l2 = nb.of(other);
+  const auto it = std::find(l1.rbegin(), l1.rend(), v);
+  const auto it2 = std::find(l2.rbegin(), l2.rend(), v);
+  std::uint64_t r = 0;
+  if (it != l1.rend()) r = 2 + 2 * static_cast<std::uint64_t>(it - l1.rbegin());
+  if (it2 != l2.rend()) {
+    const std::uint64_t r2 = 3 + 2 * static_cast<std::uint64_t>(it2 - l2.rbegin());
+    if (r == 0 || r2 < r) r = r2;
+  }
+  return r;
+}
+
+// Context for coding the vertex across gate (a, b): `second` is the quad's last vertex (anchor
+// b); `triangle` says the new face is (b, a, x). See RankContext::hint.
+RankContext rank_context(const Neighbours& nb, int anchor, int other, int second, bool triangle,
+                         std::int64_t fresh, int num_vertices) {
+  RankContext ctx;
+  ctx.fresh_possible = fresh < num_vertices;
+  ctx.anchor_degree = static_cast<int>(nb.of(anchor).size());
+  ctx.other_degree = static_cast<int>(nb.of(other).size());
+  ctx.second = second;
+  // x first (edges (a, x) and, for a triangle, (x, b) are new): open if (x, a) / (b, x) is
+  // placed and its reverse is not. y second (edge (y, b) new, b the anchor): open if (b, y) is.
+  auto open_at_anchor = [&](int x) {
+    return second ? nb.placed(anchor, x) && !nb.placed(x, anchor) : nb.placed(x, anchor) && !nb.placed(anchor, x);
+  };
+  auto open_at_other = [&](int x) { return triangle && nb.placed(other, x) && !nb.placed(x, other); };
+  int first_anchor = -1, first_other = -1;
+  for (auto it = nb.of(anchor).rbegin(); it != nb.of(anchor).rend() && first_anchor < 0; ++it)
+    if (open_at_anchor(*it)) first_anchor = *it;
+  if (triangle)
+    for (auto it = nb.of(other).rbegin(); it != nb.of(other).rend() && first_other < 0; ++it)
+      if (open_at_other(*it)) first_other = *it;
+  if (first_anchor >= 0) ctx.hint_anchor = rank_of(nb, first_anchor, anchor, other);
+  if (first_other >= 0) ctx.hint_other = rank_of(nb, first_other, anchor, other);
+  if (first_anchor >= 0 && first_other >= 0) ctx.hint_kind = first_anchor == first_other ? 1 : 2;
+  else if (first_anchor >= 0) ctx.hint_kind = 3;
+  else if (first_other >= 0) ctx.hint_kind = 4;
+  return ctx;
 }
 
 }  // namespace
 
-ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
-                                 std::vector<std::vector<int>>* traversal_order, int version) {
+void encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
+                  std::vector<std::vector<int>>* traversal_order, int version, FaceSink& sink) {
   const bool relative_indices = version >= 2;
   std::vector<std::vector<int>> canon = faces;
   for (auto& f : canon) std::rotate(f.begin(), std::min_element(f.begin(), f.end()), f.end());
@@ -61,33 +109,34 @@ ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int
     for (std::size_t k = 0; k < canon[i].size(); ++k)
       holder[{canon[i][k], canon[i][(k + 1) % canon[i].size()]}].push_back(i);
 
-  Writer symbols, ranks, vertices;
   Neighbours nb(num_vertices);
   std::vector<char> visited(canon.size(), 0);
   std::size_t done = 0, next_start = 0;
-  std::deque<Gate> gates;
+  std::deque<QueuedGate> gates;
   if (traversal_order) traversal_order->clear();
   std::vector<char> seen(static_cast<std::size_t>(num_vertices), 0);
   std::int64_t fresh = 0;
   auto plain = [&](int v) {
     if (relative_indices) {
-      vertices.varint(zigzag(static_cast<std::int64_t>(v) - fresh));
+      sink.index(zigzag(static_cast<std::int64_t>(v) - fresh));
       if (!seen[v]) seen[v] = 1, ++fresh;
     } else {
-      vertices.varint(static_cast<std::uint64_t>(v));
+      sink.index(static_cast<std::uint64_t>(v));
     }
   };
   auto note = [&](int v) {
     if (relative_indices && !seen[v]) seen[v] = 1, ++fresh;
   };
-  auto code_vertex = [&](int v, int anchor, int other) {
+  auto code_vertex = [&](int v, int anchor, int other, int second, bool triangle) {
     const auto& list = nb.of(anchor);
+    const RankContext ctx = version >= 3 ? rank_context(nb, anchor, other, second, triangle, fresh, num_vertices)
+                                         : RankContext{};
     if (relative_indices) {
       // 0: the next unseen number; 1: escape to the index stream; 2 + 2k: the anchor's k-th
       // most recent neighbour; 3 + 2k: the other gate vertex's (a face closing a fan on either
       // side mostly meets the last one known).
       if (v == fresh && !seen[v]) {
-        ranks.varint(0);
+        sink.rank(0, ctx);
         note(v);
         return;
       }
@@ -101,37 +150,39 @@ ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int
         if (r == 0 || r2 < r) r = r2;
       }
       if (r > 0) {
-        ranks.varint(r);
+        sink.rank(r, ctx);
         note(v);
       } else {
-        ranks.varint(1);
+        sink.rank(1, ctx);
         plain(v);
       }
       return;
     }
     const auto it = std::find(list.begin(), list.end(), v);
     if (it != list.end()) {
-      ranks.varint(static_cast<std::uint64_t>(it - list.begin()) + 1);
+      sink.rank(static_cast<std::uint64_t>(it - list.begin()) + 1, ctx);
       note(v);
     } else {
-      ranks.varint(0);
+      sink.rank(0, ctx);
       plain(v);
     }
   };
+  int previous = 1;
   while (done < canon.size()) {
     if (gates.empty()) {
       while (visited[next_start]) ++next_start;
       const auto& f = canon[next_start];
       visited[next_start] = 1;
       ++done;
-      symbols.u8(static_cast<std::uint8_t>(f.size()));
+      sink.start(static_cast<int>(f.size()));
       for (int v : f) plain(v);
       nb.add_face(f);
       push_gates(gates, f, 0);
       if (traversal_order) traversal_order->push_back(f);
       continue;
     }
-    const auto [a, b] = gates.front();
+    const QueuedGate g = gates.front();
+    const int a = g.a, b = g.b;
     gates.pop_front();
     // Version 2: a gate whose far side is already held by a placed face costs nothing.
     if (relative_indices && nb.placed(b, a)) continue;
@@ -143,33 +194,29 @@ ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int
           across = i;
           break;
         }
+    const GateContext gctx{g.from_size, previous};
     if (across == canon.size()) {
-      symbols.u8(0);
+      sink.symbol(0, gctx);
+      previous = 0;
       continue;
     }
     std::vector<int> f = canon[across];
     visited[across] = 1;
     ++done;
     std::rotate(f.begin(), std::find(f.begin(), f.end(), b), f.end());  // f = (b, a, x[, y])
-    symbols.u8(static_cast<std::uint8_t>(f.size() - 2));
-    code_vertex(f[2], a, b);
-    if (f.size() == 4) code_vertex(f[3], b, a);
+    previous = static_cast<int>(f.size() - 2);
+    sink.symbol(previous, gctx);
+    code_vertex(f[2], a, b, 0, f.size() == 3);
+    if (f.size() == 4) code_vertex(f[3], b, a, 1, false);
     nb.add_face(f);
     push_gates(gates, f, 1);
     if (traversal_order) traversal_order->push_back(f);
   }
-  return {std::move(symbols.bytes), std::move(ranks.bytes), std::move(vertices.bytes)};
 }
 
-std::vector<std::vector<int>> decode_faces(const std::uint8_t* symbols_data, std::size_t symbols_size,
-                                           const std::uint8_t* ranks_data, std::size_t ranks_size,
-                                           const std::uint8_t* vertices_data, std::size_t vertices_size,
-                                           std::uint32_t num_faces, int num_vertices,
-                                           int version, const std::string& source) {
+std::vector<std::vector<int>> decode_faces(FaceSource& source, std::uint32_t num_faces,
+                                           int num_vertices, int version) {
   const bool relative_indices = version >= 2;
-  Reader symbols(symbols_data, symbols_size, source, "face symbols");
-  Reader ranks(ranks_data, ranks_size, source, "face vertex ranks");
-  Reader vertices(vertices_data, vertices_size, source, "face vertex indices");
   const std::uint64_t max_index = num_vertices > 0 ? static_cast<std::uint64_t>(num_vertices) - 1 : 0;
   std::vector<char> seen(static_cast<std::size_t>(num_vertices), 0);
   std::int64_t fresh = 0;
@@ -177,21 +224,24 @@ std::vector<std::vector<int>> decode_faces(const std::uint8_t* symbols_data, std
     if (relative_indices && !seen[v]) seen[v] = 1, ++fresh;
   };
   auto plain = [&]() {
-    if (num_vertices == 0) vertices.fail("a face refers to a vertex but the mesh has none");
-    if (!relative_indices) return static_cast<int>(vertices.varint("vertex index", max_index));
-    const std::int64_t v = fresh + unzigzag(vertices.varint("vertex index offset", 2 * max_index + 1));
+    if (num_vertices == 0) source.fail("a face refers to a vertex but the mesh has none");
+    if (!relative_indices) return static_cast<int>(source.index(max_index));
+    const std::int64_t v = fresh + unzigzag(source.index(2 * max_index + 1));
     if (v < 0 || v > static_cast<std::int64_t>(max_index))
-      vertices.fail("vertex index " + std::to_string(v) + " outside [0, " + std::to_string(max_index) + "]");
+      source.fail("vertex index " + std::to_string(v) + " outside [0, " + std::to_string(max_index) + "]");
     note(static_cast<int>(v));
     return static_cast<int>(v);
   };
   Neighbours nb(num_vertices);
-  auto coded_vertex = [&](int anchor, int other) {
-    const std::uint64_t r = ranks.varint("neighbour rank", 0xFFFFFFFFull);
+  auto coded_vertex = [&](int anchor, int other, int second, bool triangle) {
     const auto& list = nb.of(anchor);
+    RankContext ctx = version >= 3 ? rank_context(nb, anchor, other, second, triangle, fresh, num_vertices)
+                                   : RankContext{};
+    ctx.fresh_possible = fresh < num_vertices;
+    const std::uint64_t r = source.rank(ctx);
     if (relative_indices) {
       if (r == 0) {
-        if (fresh >= num_vertices) ranks.fail("a new vertex but all " + std::to_string(num_vertices) + " are used");
+        if (fresh >= num_vertices) source.fail("a new vertex but all " + std::to_string(num_vertices) + " are used");
         const int v = static_cast<int>(fresh);
         note(v);
         return v;
@@ -200,35 +250,36 @@ std::vector<std::vector<int>> decode_faces(const std::uint8_t* symbols_data, std
       const auto& from = r % 2 == 0 ? list : nb.of(other);
       const std::uint64_t k = (r - 2) / 2;
       if (k >= from.size())
-        ranks.fail("neighbour rank " + std::to_string(r) + " but vertex " +
-                   std::to_string(r % 2 == 0 ? anchor : other) + " has " + std::to_string(from.size()) +
-                   " known neighbours");
+        source.fail("neighbour rank " + std::to_string(r) + " but vertex " +
+                    std::to_string(r % 2 == 0 ? anchor : other) + " has " + std::to_string(from.size()) +
+                    " known neighbours");
       const int v = from[from.size() - 1 - k];
       note(v);
       return v;
     }
     if (r == 0) return plain();
     if (r > list.size())
-      ranks.fail("neighbour rank " + std::to_string(r) + " but vertex " + std::to_string(anchor) +
-                 " has " + std::to_string(list.size()) + " known neighbours");
+      source.fail("neighbour rank " + std::to_string(r) + " but vertex " + std::to_string(anchor) +
+                  " has " + std::to_string(list.size()) + " known neighbours");
     note(list[r - 1]);
     return list[r - 1];
   };
   auto check_distinct = [&](const std::vector<int>& f, std::size_t index) {
     for (std::size_t i = 0; i < f.size(); ++i)
       for (std::size_t j = 0; j < i; ++j)
-        if (f[i] == f[j]) symbols.fail("face " + std::to_string(index) + " repeats a vertex");
+        if (f[i] == f[j]) source.fail("face " + std::to_string(index) + " repeats a vertex");
   };
 
   std::vector<std::vector<int>> faces;
   faces.reserve(num_faces);  // bounded by the payload size check in the stream header
-  std::deque<Gate> gates;
+  std::deque<QueuedGate> gates;
+  int previous = 1;
   while (faces.size() < num_faces) {
     if (gates.empty()) {
-      const std::uint8_t s = symbols.u8("component start");
+      const int s = source.start();
       if (s != 3 && s != 4)
-        symbols.fail("expected a component start (3 or 4), found " + std::to_string(s));
-      std::vector<int> f(s);
+        source.fail("expected a component start (3 or 4), found " + std::to_string(s));
+      std::vector<int> f(static_cast<std::size_t>(s));
       for (int& v : f) v = plain();
       check_distinct(f, faces.size());
       nb.add_face(f);
@@ -236,20 +287,75 @@ std::vector<std::vector<int>> decode_faces(const std::uint8_t* symbols_data, std
       faces.push_back(std::move(f));
       continue;
     }
-    const auto [a, b] = gates.front();
+    const QueuedGate g = gates.front();
+    const int a = g.a, b = g.b;
     gates.pop_front();
     if (relative_indices && nb.placed(b, a)) continue;
-    const std::uint8_t s = symbols.u8("gate symbol");
+    const int s = source.symbol(GateContext{g.from_size, previous});
+    if (s < 0 || s > 2) source.fail("gate symbol " + std::to_string(s) + " is not 0, 1 or 2");
+    previous = s;
     if (s == 0) continue;
-    if (s > 2) symbols.fail("gate symbol " + std::to_string(s) + " is not 0, 1 or 2");
     std::vector<int> f = {b, a};
-    f.push_back(coded_vertex(a, b));
-    if (s == 2) f.push_back(coded_vertex(b, a));
+    f.push_back(coded_vertex(a, b, 0, s == 1));
+    if (s == 2) f.push_back(coded_vertex(b, a, 1, false));
     check_distinct(f, faces.size());
     nb.add_face(f);
     push_gates(gates, f, 1);
     faces.push_back(std::move(f));
   }
+  return faces;
+}
+
+namespace {
+
+class ByteSink : public FaceSink {
+ public:
+  Writer symbols, ranks, vertices;
+  void start(int size) override { symbols.u8(static_cast<std::uint8_t>(size)); }
+  void index(std::uint64_t code) override { vertices.varint(code); }
+  void symbol(int s, const GateContext&) override { symbols.u8(static_cast<std::uint8_t>(s)); }
+  void rank(std::uint64_t r, const RankContext&) override { ranks.varint(r); }
+};
+
+class ByteSource : public FaceSource {
+ public:
+  ByteSource(Reader& symbols, Reader& ranks, Reader& vertices)
+      : symbols_(symbols), ranks_(ranks), vertices_(vertices) {}
+  int start() override { return symbols_.u8("component start"); }
+  std::uint64_t index(std::uint64_t max) override {
+    return vertices_.varint(relative ? "vertex index offset" : "vertex index", max);
+  }
+  int symbol(const GateContext&) override { return symbols_.u8("gate symbol"); }
+  std::uint64_t rank(const RankContext&) override { return ranks_.varint("neighbour rank", 0xFFFFFFFFull); }
+  [[noreturn]] void fail(const std::string& reason) override { symbols_.fail(reason); }
+  bool relative = false;
+
+ private:
+  Reader& symbols_;
+  Reader& ranks_;
+  Reader& vertices_;
+};
+
+}  // namespace
+
+ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
+                                 std::vector<std::vector<int>>* traversal_order, int version) {
+  ByteSink sink;
+  encode_faces(faces, num_vertices, traversal_order, version, sink);
+  return {std::move(sink.symbols.bytes), std::move(sink.ranks.bytes), std::move(sink.vertices.bytes)};
+}
+
+std::vector<std::vector<int>> decode_faces(const std::uint8_t* symbols_data, std::size_t symbols_size,
+                                           const std::uint8_t* ranks_data, std::size_t ranks_size,
+                                           const std::uint8_t* vertices_data, std::size_t vertices_size,
+                                           std::uint32_t num_faces, int num_vertices,
+                                           int version, const std::string& source) {
+  Reader symbols(symbols_data, symbols_size, source, "face symbols");
+  Reader ranks(ranks_data, ranks_size, source, "face vertex ranks");
+  Reader vertices(vertices_data, vertices_size, source, "face vertex indices");
+  ByteSource src(symbols, ranks, vertices);
+  src.relative = version >= 2;
+  auto faces = decode_faces(src, num_faces, num_vertices, version);
   if (symbols.remaining() || ranks.remaining() || vertices.remaining())
     symbols.fail("unexpected trailing bytes in the face streams");
   return faces;

@@ -23,6 +23,9 @@
 // with ranks 2 or 3. Version 1: ranks r >= 1 index the anchor's list oldest first, 0 escapes,
 // plain indices are stored as they are.
 //
+// Format version 3 makes the same decisions, coded by the range coder with context models
+// (codec/stream_v3.h) instead of bytes.
+//
 // Decoded faces come out in traversal order with that rotation; encoding them again gives the
 // same bytes. Vertices that no face uses are fine (they just never appear here).
 #pragma once
@@ -32,6 +35,58 @@
 
 namespace mm::codec_detail {
 
+// What the traversal knows when it codes a decision. Version 3 models the decisions with
+// these as contexts; versions 1 and 2 store them as bytes and ignore them.
+struct GateContext {
+  int from_size = 3;     // size of the face whose edge the gate is
+  int previous = 1;      // the previous gate symbol (1 before the first)
+};
+struct RankContext {
+  bool fresh_possible = true;  // an unseen vertex number remains (rank 0 is allowed)
+  int anchor_degree = 0;       // known neighbours of the anchor and of the other gate vertex
+  int other_degree = 0;
+  int second = 0;              // 1 for the second new vertex of a quad
+  // The likeliest known vertices: the most recent neighbour of the anchor whose edge to it is
+  // held by a placed face in the direction the new face does not use ("open"), so the new face
+  // would close the anchor's fan; the same for the other gate vertex (triangles only).
+  // hint_kind 0: neither exists, 1: both are the same vertex, 2: both exist and differ,
+  // 3: only the anchor's, 4: only the other's. Hints are ranks.
+  int hint_kind = 0;
+  std::uint64_t hint_anchor = 0, hint_other = 0;
+};
+
+// Receives the traversal's decisions in order (encoder side).
+class FaceSink {
+ public:
+  virtual ~FaceSink() = default;
+  virtual void start(int size) = 0;                               // component start, 3 or 4
+  virtual void index(std::uint64_t code) = 0;                     // plain index (as stored)
+  virtual void symbol(int s, const GateContext& ctx) = 0;         // 0, 1 or 2
+  virtual void rank(std::uint64_t r, const RankContext& ctx) = 0;
+};
+
+// Supplies them (decoder side). Values are bounds-checked by the caller where it knows more;
+// `max` arguments bound what a source may return. fail() throws InputError naming the source.
+class FaceSource {
+ public:
+  virtual ~FaceSource() = default;
+  virtual int start() = 0;
+  virtual std::uint64_t index(std::uint64_t max) = 0;
+  virtual int symbol(const GateContext& ctx) = 0;
+  virtual std::uint64_t rank(const RankContext& ctx) = 0;
+  [[noreturn]] virtual void fail(const std::string& reason) = 0;
+};
+
+// Runs the encoder's traversal, handing each decision to `sink`. Returns, in
+// `traversal_order`, the faces as the decoder will produce them.
+void encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
+                  std::vector<std::vector<int>>* traversal_order, int version, FaceSink& sink);
+
+// Decodes exactly `num_faces` faces from `source`.
+std::vector<std::vector<int>> decode_faces(FaceSource& source, std::uint32_t num_faces,
+                                           int num_vertices, int version);
+
+// Versions 1 and 2: the decisions as three byte streams.
 struct ConnectivityStreams {
   std::vector<std::uint8_t> symbols;   // one byte per popped gate or component start
   std::vector<std::uint8_t> ranks;     // varint per coded vertex of a face reached by a gate
@@ -39,7 +94,6 @@ struct ConnectivityStreams {
 };
 
 // Faces must be triangles or quads with distinct in-range vertices (checked by the caller).
-// Returns the streams and, in `traversal_order`, the faces as the decoder will produce them.
 ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
                                  std::vector<std::vector<int>>* traversal_order, int version);
 

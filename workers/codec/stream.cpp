@@ -17,6 +17,7 @@
 #include "codec/prediction.h"
 #include "codec/rice.h"
 #include "codec/stream_detail.h"
+#include "codec/stream_v3.h"
 
 namespace mm {
 namespace {
@@ -45,15 +46,10 @@ void write_bitset(Writer& out, const std::vector<bool>& bits) {
   out.raw(b.data(), b.size());
 }
 
-constexpr std::size_t kMaxMetadataEntries = 32, kMaxKeyBytes = 64, kMaxValueBytes = 1024;
-
-bool valid_key(const std::string& k) {
-  if (k.empty() || k.size() > kMaxKeyBytes) return false;
-  return std::all_of(k.begin(), k.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-           c == '_' || c == '.' || c == '-';
-  });
-}
+using codec_detail::kMaxKeyBytes;
+using codec_detail::kMaxMetadataEntries;
+using codec_detail::kMaxValueBytes;
+using codec_detail::valid_key;
 
 // Most bits one Rice-coded coordinate can take: the quotient cap, its stop bit, k low bits.
 constexpr std::size_t kMaxCoordBits = codec_detail::kMaxRiceQuotient + 1 + codec_detail::kMaxRiceParameter;
@@ -77,6 +73,8 @@ std::pair<std::uint64_t, std::uint64_t> payload_bounds(const Header& h) {
 
 void validate_for_encoding(const Mesh& mesh, const CodecParams& params) {
   const std::string src = "encode";
+  if (params.format_version != 2 && params.format_version != 3)
+    throw InputError(src, "format version " + std::to_string(params.format_version) + " cannot be written (2 or 3)");
   if (params.quant_bits < kMinQuantBits || params.quant_bits > kMaxQuantBits)
     throw InputError(src, "quantisation bits " + std::to_string(params.quant_bits) + " outside [" +
                               std::to_string(kMinQuantBits) + ", " + std::to_string(kMaxQuantBits) + "]");
@@ -200,10 +198,10 @@ std::vector<std::uint8_t> join(Header h, const std::vector<std::uint8_t>& raw, i
   return std::move(w.bytes);
 }
 
-Parts split(const std::uint8_t* data, std::size_t size, const std::string& source) {
-  const std::size_t min_size = kFixedHeaderBytes + 6 + kChecksumBytes;
+void check_envelope(const std::uint8_t* data, std::size_t size, const std::string& source) {
   if (size >= 4 && std::memcmp(data, kMagic, 4) != 0)
     throw InputError(source, "not a meshmark stream (bad magic)");
+  const std::size_t min_size = std::min(kMinBytesV3, kFixedHeaderBytes + 6 + kChecksumBytes);
   if (size < min_size)
     throw InputError(source, "truncated: " + std::to_string(size) + " bytes, a stream has at least " +
                                  std::to_string(min_size));
@@ -212,11 +210,21 @@ Parts split(const std::uint8_t* data, std::size_t size, const std::string& sourc
     throw InputError(source, "unsupported format version " + std::to_string(data[4]) +
                                  " (this build reads versions " + std::to_string(kOldestVersion) +
                                  " to " + std::to_string(kVersion) + ")");
+  const std::size_t v12_min = kFixedHeaderBytes + 6 + kChecksumBytes;
+  if (data[4] < 3 && size < v12_min)
+    throw InputError(source, "truncated: " + std::to_string(size) + " bytes, a version " +
+                                 std::to_string(data[4]) + " stream has at least " + std::to_string(v12_min));
   const std::size_t body = size - kChecksumBytes;
   std::uint32_t stored = 0;
   for (int i = 0; i < 4; ++i) stored |= static_cast<std::uint32_t>(data[body + i]) << (8 * i);
   if (checksum(data, body) != stored)
     throw InputError(source, "checksum mismatch: the stream is corrupted or truncated");
+}
+
+Parts split(const std::uint8_t* data, std::size_t size, const std::string& source) {
+  check_envelope(data, size, source);
+  if (data[4] > 2) throw InputError(source, "split() reads versions 1 and 2 only");
+  const std::size_t body = size - kChecksumBytes;
 
   Parts parts;
   Header& h = parts.header;
@@ -281,7 +289,8 @@ std::vector<std::uint8_t> encode(const Mesh& mesh, const CodecParams& params) {
   validate_for_encoding(mesh, params);
   Quantization q;
   try {
-    q = quantization_for(mesh.points, params.quant_bits);
+    q = params.format_version >= 3 ? quantization_for(mesh.points, params.quant_bits)
+                                   : box_quantization_for(mesh.points, params.quant_bits);
   } catch (const InputError& e) {
     throw InputError("encode", e.reason());
   }
@@ -297,11 +306,13 @@ std::vector<std::uint8_t> encode(const Mesh& mesh, const CodecParams& params) {
                                      ") is not an edge of the mesh");
     crease_bits[it - edges.begin()] = true;
   }
+  if (params.format_version == 3) return codec_detail::encode_v3(mesh, q, grid, params.metadata);
   std::vector<int> corners = mesh.corners;
   std::sort(corners.begin(), corners.end());
   corners.erase(std::unique(corners.begin(), corners.end()), corners.end());
 
   Header h;
+  h.version = 2;
   h.bits = static_cast<std::uint8_t>(q.bits);
   h.offset = q.offset;
   h.step = q.step;
@@ -313,7 +324,7 @@ std::vector<std::uint8_t> encode(const Mesh& mesh, const CodecParams& params) {
 
   // Smallest of the coordinate predictions, compressed or stored. Ties go to the first tried.
   std::vector<std::vector<int>> traversal;
-  const auto streams = codec_detail::encode_faces(mesh.faces, mesh.num_vertices(), &traversal, codec_detail::kVersion);
+  const auto streams = codec_detail::encode_faces(mesh.faces, mesh.num_vertices(), &traversal, 2);
   codec_detail::PredictionContext ctx;
   ctx.lower = codec_detail::lower_neighbours(edges, mesh.num_vertices());
   ctx.parallelogram = codec_detail::parallelograms(traversal, mesh.num_vertices());
@@ -337,6 +348,8 @@ std::vector<std::uint8_t> encode(const Mesh& mesh, const CodecParams& params) {
 }
 
 DecodedStream decode(const std::uint8_t* data, std::size_t size, const std::string& source) {
+  codec_detail::check_envelope(data, size, source);
+  if (data[4] == 3) return codec_detail::decode_v3(data, size, source);
   codec_detail::Parts parts = codec_detail::split(data, size, source);
   const Header& h = parts.header;
   Reader in(parts.raw.data(), parts.raw.size(), source, "payload");
@@ -481,7 +494,7 @@ std::vector<int> traversal_vertex_order(const Mesh& mesh) {
     for (int v : f)
       if (v < 0 || v >= n) throw std::invalid_argument("traversal_vertex_order: face index out of range");
   std::vector<std::vector<int>> traversal;
-  codec_detail::encode_faces(mesh.faces, n, &traversal, codec_detail::kVersion);
+  codec_detail::encode_faces(mesh.faces, n, &traversal, 3);  // same traversal as version 2
   std::vector<int> order;
   order.reserve(static_cast<std::size_t>(n));
   std::vector<char> taken(static_cast<std::size_t>(n), 0);

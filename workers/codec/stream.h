@@ -20,7 +20,10 @@ namespace mm {
 
 struct CodecParams {
   int quant_bits = 12;                        // [kMinQuantBits, kMaxQuantBits]
-  int zstd_level = 19;
+  int zstd_level = 19;                        // versions 1 and 2 only
+  // Format version written: 3 (default) or 2 (to compare sizes, or for readers built before
+  // version 3).
+  int format_version = 3;
   // Small key-value strings (asset id, copy id...). Keys: 1..64 bytes of [A-Za-z0-9_.-];
   // values: up to 1024 bytes; at most 32 entries. Never put secrets here.
   std::map<std::string, std::string> metadata;

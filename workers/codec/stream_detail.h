@@ -10,9 +10,10 @@
 namespace mm::codec_detail {
 
 constexpr std::uint8_t kMagic[4] = {'M', 'M', 'C', 'S'};
-// Version 2 (written): plain face indices relative to the count of vertices seen so far,
+// Version 2: plain face indices relative to the count of vertices seen so far,
 // parallelogram prediction. Version 1 (still read): plain indices, predictions 0-2.
-constexpr std::uint8_t kVersion = 2;
+// Version 3: compact header and a range-coded body (codec/stream_v3.h); written by default.
+constexpr std::uint8_t kVersion = 3;
 constexpr std::uint8_t kOldestVersion = 1;
 constexpr std::uint8_t kFlagZstd = 1;         // payload is one zstd frame (else stored as is)
 // Bits 1-2: coordinate prediction (codec/prediction.h: 0 plain, 1 previous vertex, 2 neighbours,
@@ -28,8 +29,20 @@ constexpr std::size_t kChecksumBytes = 4;
 constexpr std::size_t kMaxExpansion = 64;
 constexpr std::size_t kExpansionFloor = 1u << 16;
 
+constexpr std::size_t kMaxMetadataEntries = 32, kMaxKeyBytes = 64, kMaxValueBytes = 1024;
+
+// Metadata keys: 1..64 bytes of [A-Za-z0-9_.-].
+inline bool valid_key(const std::string& k) {
+  if (k.empty() || k.size() > kMaxKeyBytes) return false;
+  for (char c : k)
+    if (!((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
+          c == '.' || c == '-'))
+      return false;
+  return true;
+}
+
 struct Header {
-  std::uint8_t version = kVersion;
+  std::uint8_t version = 2;
   std::uint8_t flags = 0;
   std::uint8_t bits = 12;
   Eigen::Vector3d offset = Eigen::Vector3d::Zero();
@@ -50,7 +63,14 @@ std::uint32_t checksum(const std::uint8_t* data, std::size_t size);
 // here (zstd_level <= 0 stores the payload uncompressed). No validation of the contents.
 std::vector<std::uint8_t> join(Header header, const std::vector<std::uint8_t>& raw, int zstd_level);
 
-// Checks magic, version, checksum, flags, quantisation bits, transform, counts and their
+// Minimum size of a version 3 stream: magic, version, bits, cell grid (4 varints), two counts,
+// checksum.
+constexpr std::size_t kMinBytesV3 = 6 + 4 + 2 + kChecksumBytes;
+
+// Checks magic, minimum size, size limit, version and checksum (all versions).
+void check_envelope(const std::uint8_t* data, std::size_t size, const std::string& source);
+
+// Versions 1 and 2: checks magic, version, checksum, flags, quantisation bits, transform, counts and their
 // consistency with the payload size, then decompresses. Throws InputError(source, reason).
 Parts split(const std::uint8_t* data, std::size_t size, const std::string& source);
 
