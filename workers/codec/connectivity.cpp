@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <deque>
 #include <map>
+#include <stdexcept>
 #include <unordered_set>
 
 #include "codec/bytes.h"
@@ -34,6 +35,10 @@ class Neighbours {
                          static_cast<std::uint32_t>(v)) > 0;
   }
   const std::vector<int>& of(int v) const { return lists_[v]; }
+  bool adjacent(int u, int v) const {
+    return known_.count((static_cast<std::uint64_t>(std::min(u, v)) << 32) |
+                        static_cast<std::uint32_t>(std::max(u, v))) > 0;
+  }
 
  private:
   std::vector<std::vector<int>> lists_;
@@ -49,6 +54,25 @@ struct QueuedGate {
 void push_gates(std::deque<QueuedGate>& gates, const std::vector<int>& f, std::size_t first) {
   for (std::size_t k = first; k < f.size(); ++k)
     gates.push_back({f[k], f[(k + 1) % f.size()], static_cast<int>(f.size())});
+}
+
+// Version 3 escapes: known vertices two edges from a gate vertex (neighbours of the anchor's,
+// then of the other's, most recent first), excluding the gate vertices and their own
+// neighbours (those have ranks). A face that meets the traversal front elsewhere mostly closes
+// onto such a vertex. Bounded (kRingEntries entries, kRingScan list entries read) so hostile
+// high-degree vertices cannot make it expensive.
+constexpr std::size_t kRingEntries = 64, kRingScan = 1024;
+std::vector<int> two_ring(const Neighbours& nb, int anchor, int other) {
+  std::vector<int> ring;
+  std::size_t scanned = 0;
+  for (int x : {anchor, other})
+    for (auto u = nb.of(x).rbegin(); u != nb.of(x).rend(); ++u)
+      for (auto y = nb.of(*u).rbegin(); y != nb.of(*u).rend(); ++y) {
+        if (++scanned > kRingScan || ring.size() >= kRingEntries) return ring;
+        if (*y == anchor || *y == other || nb.adjacent(*y, anchor) || nb.adjacent(*y, other)) continue;
+        if (std::find(ring.begin(), ring.end(), *y) == ring.end()) ring.push_back(*y);
+      }
+  return ring;
 }
 
 // Rank of a known vertex v under the version 2 rules (smallest of both lists), 0 if in neither.
@@ -152,6 +176,14 @@ void encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
       if (r > 0) {
         sink.rank(r, ctx);
         note(v);
+      } else if (version >= 3) {
+        // Escape: position in the two-ring, else past it the index relative to `fresh`.
+        sink.rank(1, ctx);
+        const auto ring = two_ring(nb, anchor, other);
+        const auto at = std::find(ring.begin(), ring.end(), v);
+        sink.escape(at != ring.end() ? static_cast<std::uint64_t>(at - ring.begin())
+                                     : ring.size() + zigzag(static_cast<std::int64_t>(v) - fresh));
+        note(v);
       } else {
         sink.rank(1, ctx);
         plain(v);
@@ -246,6 +278,21 @@ std::vector<std::vector<int>> decode_faces(FaceSource& source, std::uint32_t num
         note(v);
         return v;
       }
+      if (r == 1 && version >= 3) {
+        if (num_vertices == 0) source.fail("a face refers to a vertex but the mesh has none");
+        const auto ring = two_ring(nb, anchor, other);
+        const std::uint64_t code = source.escape(ring.size() + 2 * max_index + 1);
+        std::int64_t v;
+        if (code < ring.size()) {
+          v = ring[code];
+        } else {
+          v = fresh + unzigzag(code - ring.size());
+          if (v < 0 || v > static_cast<std::int64_t>(max_index))
+            source.fail("vertex index " + std::to_string(v) + " outside [0, " + std::to_string(max_index) + "]");
+        }
+        note(static_cast<int>(v));
+        return static_cast<int>(v);
+      }
       if (r == 1) return plain();
       const auto& from = r % 2 == 0 ? list : nb.of(other);
       const std::uint64_t k = (r - 2) / 2;
@@ -315,6 +362,7 @@ class ByteSink : public FaceSink {
   void index(std::uint64_t code) override { vertices.varint(code); }
   void symbol(int s, const GateContext&) override { symbols.u8(static_cast<std::uint8_t>(s)); }
   void rank(std::uint64_t r, const RankContext&) override { ranks.varint(r); }
+  void escape(std::uint64_t) override { throw std::logic_error("escape codes are version 3 only"); }
 };
 
 class ByteSource : public FaceSource {
@@ -327,6 +375,7 @@ class ByteSource : public FaceSource {
   }
   int symbol(const GateContext&) override { return symbols_.u8("gate symbol"); }
   std::uint64_t rank(const RankContext&) override { return ranks_.varint("neighbour rank", 0xFFFFFFFFull); }
+  std::uint64_t escape(std::uint64_t) override { fail("escape codes are version 3 only"); }
   [[noreturn]] void fail(const std::string& reason) override { symbols_.fail(reason); }
   bool relative = false;
 

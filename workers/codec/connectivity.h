@@ -63,6 +63,9 @@ class FaceSink {
   virtual void index(std::uint64_t code) = 0;                     // plain index (as stored)
   virtual void symbol(int s, const GateContext& ctx) = 0;         // 0, 1 or 2
   virtual void rank(std::uint64_t r, const RankContext& ctx) = 0;
+  // Version 3, after rank 1: k < ring size picks entry k of the vertices two edges from the gate;
+  // ring size + zigzag(index - fresh) otherwise.
+  virtual void escape(std::uint64_t code) = 0;
 };
 
 // Supplies them (decoder side). Values are bounds-checked by the caller where it knows more;
@@ -74,6 +77,7 @@ class FaceSource {
   virtual std::uint64_t index(std::uint64_t max) = 0;
   virtual int symbol(const GateContext& ctx) = 0;
   virtual std::uint64_t rank(const RankContext& ctx) = 0;
+  virtual std::uint64_t escape(std::uint64_t max) = 0;
   [[noreturn]] virtual void fail(const std::string& reason) = 0;
 };
 

@@ -494,7 +494,7 @@ std::vector<int> traversal_vertex_order(const Mesh& mesh) {
     for (int v : f)
       if (v < 0 || v >= n) throw std::invalid_argument("traversal_vertex_order: face index out of range");
   std::vector<std::vector<int>> traversal;
-  codec_detail::encode_faces(mesh.faces, n, &traversal, 3);  // same traversal as version 2
+  codec_detail::encode_faces(mesh.faces, n, &traversal, 2);  // version 3 runs the same traversal
   std::vector<int> order;
   order.reserve(static_cast<std::size_t>(n));
   std::vector<char> taken(static_cast<std::size_t>(n), 0);

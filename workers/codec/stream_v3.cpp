@@ -82,6 +82,7 @@ struct FaceModels {
   std::array<BitModel, 2> escape{};
   BitModel other_side;
   std::array<EgModels, 2> neighbour{};  // [other side]
+  EgModels escape_code;
 };
 
 int degree_context(const RankContext& c) { return std::min((c.anchor_degree + c.other_degree) / 3, 3); }
@@ -113,6 +114,7 @@ class RangeFaceSink : public FaceSink {
     rc_.bit(m_.other_side, side);
     put_eg(rc_, m_.neighbour[side], (r - 2) / 2);
   }
+  void escape(std::uint64_t code) override { put_eg(rc_, m_.escape_code, code); }
 
  private:
   RangeEncoder& rc_;
@@ -141,6 +143,7 @@ class RangeFaceSource : public FaceSource {
     const std::uint64_t k = in_.eg(m_.neighbour[side], kMaxStreamVertices, "neighbour rank");
     return 2 + 2 * k + static_cast<std::uint64_t>(side);
   }
+  std::uint64_t escape(std::uint64_t max) override { return in_.eg(m_.escape_code, max, "escape code"); }
   [[noreturn]] void fail(const std::string& reason) override { in_.fail("faces: " + reason); }
 
  private:
