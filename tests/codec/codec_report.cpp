@@ -86,8 +86,14 @@ int main(int argc, char** argv) {
         const mm::Quantization q = mm::quantization_for(d.mesh.points, p.quant_bits);
         cd::SectionBits sb;
         const auto v3 = cd::encode_v3(d.mesh, q, mm::quantize(d.mesh.points, q), d.metadata, &sb);
-        std::printf("  version 2: %zu bytes; version 3: %zu bytes (%.1f%%): header %zu, faces %.1f, coordinates %.1f (%.2f bits each), creases %.1f, corners %.1f, metadata %.1f, checksum 4\n",
-                    v2, v3.size(), 100.0 * v3.size() / v2, sb.header_bytes, sb.faces / 8, sb.coordinates / 8,
+        // And one bit finer, whose step is at most version 2's (the cell grid's step at B bits is
+        // 1 to 2 times the bounding-box grid's).
+        const mm::Quantization q1 = mm::quantization_for(d.mesh.points, p.quant_bits + 1);
+        const auto v3_finer = cd::encode_v3(d.mesh, q1, mm::quantize(d.mesh.points, q1), d.metadata);
+        std::printf("  version 2: %zu bytes (step %.4g); version 3: %zu bytes (%.1f%%, step %.4g), at %d bits %zu (%.1f%%, step %.4g)\n"
+                    "  version 3 sections: header %zu, faces %.1f, coordinates %.1f (%.2f bits each), creases %.1f, corners %.1f, metadata %.1f, checksum 4\n",
+                    v2, d.quantization.step, v3.size(), 100.0 * v3.size() / v2, q.step, p.quant_bits + 1,
+                    v3_finer.size(), 100.0 * v3_finer.size() / v2, q1.step, sb.header_bytes, sb.faces / 8, sb.coordinates / 8,
                     sb.coordinates / (3.0 * std::max(1, d.mesh.num_vertices())), sb.creases / 8, sb.corners / 8, sb.metadata / 8);
       }
       if (std::getenv("MM_REPORT_DUMP")) {  // grid, faces, creases, corners as text, for experiments

@@ -1,6 +1,7 @@
 // The .mmc stream: a control polyhedron (triangles and quads, sharp creases, corners) with
-// quantised positions, entropy coded with zstd and sealed by a CRC-32. docs/stream-format.md
-// describes it byte by byte.
+// quantised positions, entropy coded (version 3: an adaptive range coder with context models,
+// codec/stream_v3.h; versions 1 and 2, still read: zstd) and sealed by a CRC-32.
+// docs/stream-format.md describes it byte by byte.
 //
 // Vertex order is kept exactly: the watermark lives in the spectrum of this vertex order.
 // Face order and each face's first vertex carry no meaning and are not kept (faces come back in
