@@ -76,6 +76,14 @@ int main(int argc, char** argv) {
                   static_cast<double>(s.size()) / std::max(1, d.mesh.num_vertices()));
       if (d.version <= 2) report_v2(s, d);
       {
+        mm::CodecParams p;
+        p.quant_bits = d.quantization.bits;
+        p.metadata = d.metadata;
+        p.format_version = d.version >= 3 ? 3 : 2;
+        std::printf("  re-encoding the decoded polyhedron as version %d gives %s bytes\n", p.format_version,
+                    d.version >= 2 && mm::encode(d.mesh, p) == s ? "the same" : "different");
+      }
+      {
         // The same polyhedron (decoded points re-quantise to the same grid) in each version.
         mm::CodecParams p;
         p.quant_bits = d.quantization.bits;
