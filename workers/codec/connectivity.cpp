@@ -375,7 +375,7 @@ class ByteSource : public FaceSource {
   }
   int symbol(const GateContext&) override { return symbols_.u8("gate symbol"); }
   std::uint64_t rank(const RankContext&) override { return ranks_.varint("neighbour rank", 0xFFFFFFFFull); }
-  std::uint64_t escape(std::uint64_t) override { fail("escape codes are version 3 only"); }
+  std::uint64_t escape(std::uint64_t) override { symbols_.fail("escape codes are version 3 only"); }
   [[noreturn]] void fail(const std::string& reason) override { symbols_.fail(reason); }
   bool relative = false;
 
