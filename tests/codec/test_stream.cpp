@@ -112,6 +112,22 @@ TEST(Stream, RoundTripSharedMeshes) {
   }
 }
 
+TEST(Stream, HighDegreeVertexRoundTrips) {
+  // A disc of 20000 triangles around one vertex: version 3's per-decision work (hints, copy
+  // candidates) is bounded per decision, so this stays linear (it would be quadratic in the
+  // hub's degree otherwise).
+  const int n = 20000;
+  mm::Mesh m;
+  m.points.resize(n + 1, 3);
+  m.points.row(0) << 0, 0, 0;
+  for (int i = 0; i < n; ++i)
+    m.points.row(i + 1) << std::cos(2 * M_PI * i / n), std::sin(2 * M_PI * i / n), (i % 7) * 1e-3;
+  for (int i = 0; i < n; ++i) m.faces.push_back({0, 1 + i, 1 + (i + 1) % n});
+  m.creases = {{0, 1}};
+  m.corners = {0};
+  expect_round_trip(m, 16, "fan");
+}
+
 TEST(Stream, VertexOrderIsPreserved) {
   // The same geometry in two vertex orders gives streams whose decoded points follow each order.
   const mm::Mesh a = mm::test::wavy_grid(12, 9, 1);

@@ -61,30 +61,41 @@ void push_gates(std::deque<QueuedGate>& gates, const std::vector<int>& f, std::s
 // neighbours (those have ranks). A face that meets the traversal front elsewhere mostly closes
 // onto such a vertex. Bounded (kRingEntries entries, kRingScan list entries read) so hostile
 // high-degree vertices cannot make it expensive.
-constexpr std::size_t kRingEntries = 64, kRingScan = 1024;
+constexpr std::size_t kRingEntries = 32, kRingScan = 256;
 std::vector<int> two_ring(const Neighbours& nb, int anchor, int other) {
   std::vector<int> ring;
   std::size_t scanned = 0;
   for (int x : {anchor, other})
-    for (auto u = nb.of(x).rbegin(); u != nb.of(x).rend(); ++u)
+    for (auto u = nb.of(x).rbegin(); u != nb.of(x).rend(); ++u) {
+      if (++scanned > kRingScan) return ring;
       for (auto y = nb.of(*u).rbegin(); y != nb.of(*u).rend(); ++y) {
         if (++scanned > kRingScan || ring.size() >= kRingEntries) return ring;
         if (*y == anchor || *y == other || nb.adjacent(*y, anchor) || nb.adjacent(*y, other)) continue;
         if (std::find(ring.begin(), ring.end(), *y) == ring.end()) ring.push_back(*y);
       }
+    }
   return ring;
 }
 
-// Rank of a known vertex v under the version 2 rules (smallest of both lists), 0 if in neither.
+// Hints look at the last kHintScan entries of each list only, so a decision costs O(1) however
+// large a (hostile) vertex's degree. A hint found there has a rank below 2 + 2 kHintScan + 1,
+// and an entry deeper than kHintScan in the other list would rank higher, so searching the last
+// kHintScan entries of both lists gives the vertex's version 2 rank exactly.
+constexpr std::size_t kHintScan = 64;
+
+// Rank of a vertex v found among the last kHintScan entries of a gate vertex's list, under the
+// version 2 rules (the smaller of its ranks in the two lists).
 std::uint64_t rank_of(const Neighbours& nb, int v, int anchor, int other) {
-  const auto& l1 = nb.of(anchor);
-  const auto& l2 = nb.of(other);
-  const auto it = std::find(l1.rbegin(), l1.rend(), v);
-  const auto it2 = std::find(l2.rbegin(), l2.rend(), v);
+  auto position = [&](const std::vector<int>& list) -> std::int64_t {
+    for (std::size_t k = 0; k < list.size() && k < kHintScan; ++k)
+      if (list[list.size() - 1 - k] == v) return static_cast<std::int64_t>(k);
+    return -1;
+  };
+  const std::int64_t ka = position(nb.of(anchor)), kb = position(nb.of(other));
   std::uint64_t r = 0;
-  if (it != l1.rend()) r = 2 + 2 * static_cast<std::uint64_t>(it - l1.rbegin());
-  if (it2 != l2.rend()) {
-    const std::uint64_t r2 = 3 + 2 * static_cast<std::uint64_t>(it2 - l2.rbegin());
+  if (ka >= 0) r = 2 + 2 * static_cast<std::uint64_t>(ka);
+  if (kb >= 0) {
+    const std::uint64_t r2 = 3 + 2 * static_cast<std::uint64_t>(kb);
     if (r == 0 || r2 < r) r = r2;
   }
   return r;
@@ -106,11 +117,13 @@ RankContext rank_context(const Neighbours& nb, int anchor, int other, int second
   };
   auto open_at_other = [&](int x) { return triangle && nb.placed(other, x) && !nb.placed(x, other); };
   int first_anchor = -1, first_other = -1;
-  for (auto it = nb.of(anchor).rbegin(); it != nb.of(anchor).rend() && first_anchor < 0; ++it)
-    if (open_at_anchor(*it)) first_anchor = *it;
+  const auto& la = nb.of(anchor);
+  for (std::size_t k = 0; k < la.size() && k < kHintScan && first_anchor < 0; ++k)
+    if (open_at_anchor(la[la.size() - 1 - k])) first_anchor = la[la.size() - 1 - k];
+  const auto& lb = nb.of(other);
   if (triangle)
-    for (auto it = nb.of(other).rbegin(); it != nb.of(other).rend() && first_other < 0; ++it)
-      if (open_at_other(*it)) first_other = *it;
+    for (std::size_t k = 0; k < lb.size() && k < kHintScan && first_other < 0; ++k)
+      if (open_at_other(lb[lb.size() - 1 - k])) first_other = lb[lb.size() - 1 - k];
   if (first_anchor >= 0) ctx.hint_anchor = rank_of(nb, first_anchor, anchor, other);
   if (first_other >= 0) ctx.hint_other = rank_of(nb, first_other, anchor, other);
   if (first_anchor >= 0 && first_other >= 0) ctx.hint_kind = first_anchor == first_other ? 1 : 2;

@@ -155,7 +155,9 @@ class RangeFaceSource : public FaceSource {
 // Coordinates: predicted in vertex order from earlier vertices, all three axes of a vertex
 // together, residuals as zero flag, sign and Exp-Golomb magnitude with models per prediction kind.
 
-enum CoordPrediction : int { kParallelogramFirst = 0, kNeighboursFirst = 1, kBlend = 2, kNumPredictions = 3 };
+// kPrevious: the previous vertex's value, for scan-ordered meshes (what version 2 calls
+// "previous"); the others use the mesh neighbours.
+enum CoordPrediction : int { kParallelogramFirst = 0, kNeighboursFirst = 1, kBlend = 2, kPrevious = 3 };
 
 // Per vertex: the parallelograms (u, v, c) predicting it as u + v - c from vertices stored
 // before it: every triangle (w, u, v) whose edge (v, u) is held by a triangle (v, u, c) (the
@@ -221,6 +223,7 @@ std::int64_t rounded_mean(std::int64_t num, std::int64_t den) {
 // Prediction of grid(w, a) and its kind (0 parallelogram used, 1 neighbours only, 2 neither).
 std::pair<std::int64_t, int> predict_v3(const GridPoints& g, int w, int a, int mode, const Predictors& p,
                                         std::int64_t max_value) {
+  if (mode == kPrevious) return {w > 0 ? g(w - 1, a) : 0, 2};
   const std::uint32_t plo = p.start[w], phi = p.start[w + 1];
   const std::uint32_t nlo = p.lower.start[w], nhi = p.lower.start[w + 1];
   std::int64_t para = 0, mean = 0;
@@ -262,14 +265,20 @@ struct Candidate {
   std::int32_t value;
   int count;
 };
+
 void copy_candidates(const GridPoints& g, int w, int a, std::int64_t guess, const LowerNeighbours& lower,
-                     std::vector<Candidate>& out) {
+                     std::vector<std::int32_t>& values, std::vector<Candidate>& out) {
+  // Distinct values by sorting (not a search per value), so a vertex with many lower
+  // neighbours costs O(d log d), not O(d^2).
+  values.clear();
+  for (std::uint32_t k = lower.start[w]; k < lower.start[w + 1]; ++k) values.push_back(g(lower.list[k], a));
+  std::sort(values.begin(), values.end());
   out.clear();
-  for (std::uint32_t k = lower.start[w]; k < lower.start[w + 1]; ++k) {
-    const std::int32_t v = g(lower.list[k], a);
-    auto it = std::find_if(out.begin(), out.end(), [&](const Candidate& c) { return c.value == v; });
-    if (it == out.end()) out.push_back({v, 1});
-    else ++it->count;
+  for (std::size_t i = 0; i < values.size();) {
+    std::size_t j = i;
+    while (j < values.size() && values[j] == values[i]) ++j;
+    out.push_back({values[i], static_cast<int>(j - i)});
+    i = j;
   }
   std::sort(out.begin(), out.end(), [&](const Candidate& x, const Candidate& y) {
     if (x.count != y.count) return x.count > y.count;
@@ -371,47 +380,44 @@ struct SortedEdges {
   std::vector<std::pair<int, int>> edges;
 };
 
-std::vector<std::uint8_t> encode_with(const Mesh& mesh, const Quantization& q, const GridPoints& grid,
-                                      const std::map<std::string, std::string>& metadata, int mode,
-                                      SectionBits* sections) {
-  const int n = mesh.num_vertices();
+// The header and the faces are the same for every coordinate mode, so they are coded once and
+// the coder's state is copied for each mode.
+std::vector<std::uint8_t> header_bytes(const Mesh& mesh, const Quantization& q, int levels) {
   Writer w;
   w.raw(kMagic, 4);
   w.u8(3);
-  const int levels = levels_code(metadata);
   w.u8(static_cast<std::uint8_t>((q.bits - kMinQuantBits) | (levels << 5)));
   // The cell grid (codec/quantize.h): exponent and cell origin per axis.
   const int exponent = std::ilogb(q.step);
   w.varint(zigzag(exponent));
   for (int a = 0; a < 3; ++a)
     w.varint(zigzag(static_cast<std::int64_t>(std::floor(std::ldexp(q.offset[a], -exponent)))));
-  w.varint(static_cast<std::uint64_t>(n));
+  w.varint(static_cast<std::uint64_t>(mesh.num_vertices()));
   w.varint(mesh.faces.size());
-  if (sections) sections->header_bytes = w.bytes.size();
+  return std::move(w.bytes);
+}
 
-  RangeEncoder rc;
-  rc.bits(static_cast<std::uint32_t>(mode), 3);
+// Everything after the faces, for one mode, continuing `rc`.
+void encode_rest(RangeEncoder& rc, const Mesh& mesh, const Quantization& q, const GridPoints& grid,
+                 const std::map<std::string, std::string>& metadata, int mode,
+                 const std::vector<std::pair<int, int>>& edges, const Predictors& pred,
+                 const std::vector<std::uint8_t>& classes, SectionBits& sections) {
+  const int n = mesh.num_vertices();
   std::uint64_t mark = rc.cost_256();
   auto section = [&](double SectionBits::*field) {
-    if (sections) sections->*field = (rc.cost_256() - mark) / 256.0;
+    sections.*field = (rc.cost_256() - mark) / 256.0;
     mark = rc.cost_256();
   };
-  FaceModels fm;
-  RangeFaceSink sink(rc, fm);
-  std::vector<std::vector<int>> faces;
-  encode_faces(mesh.faces, n, &faces, 3, sink);
-  section(&SectionBits::faces);
-
-  const auto edges = unique_edges(mesh);
-  const Predictors pred = predictors(faces, edges, n);
+  rc.bits(static_cast<std::uint32_t>(mode), 3);
   CoordModels cm;
   std::vector<Candidate> cands;
+  std::vector<std::int32_t> scratch;
   for (int v = 0; v < n; ++v) {
     int copied = 0;
     for (int a = 0; a < 3; ++a) {
       const auto [guess, kind] = predict_v3(grid, v, a, mode & 3, pred, q.max_value());
       if (mode & 4) {
-        copy_candidates(grid, v, a, guess, pred.lower, cands);
+        copy_candidates(grid, v, a, guess, pred.lower, scratch, cands);
         if (!cands.empty()) {
           std::size_t i = 0;
           while (i < cands.size() && cands[i].value != grid(v, a)) ++i;
@@ -439,7 +445,6 @@ std::vector<std::uint8_t> encode_with(const Mesh& mesh, const Quantization& q, c
     if (a > b) std::swap(a, b);
     crease[std::lower_bound(edges.begin(), edges.end(), std::make_pair(a, b)) - edges.begin()] = 1;
   }
-  const auto classes = edge_classes(faces, edges, grid);
   FeatureModels xm;
   std::vector<int> crease_degree(static_cast<std::size_t>(n), 0);
   for (std::size_t e = 0; e < edges.size(); ++e) {
@@ -453,6 +458,7 @@ std::vector<std::uint8_t> encode_with(const Mesh& mesh, const Quantization& q, c
   for (int v = 0; v < n; ++v) rc.bit(xm.corner[std::min(crease_degree[v], 3)], corner[v]);
   section(&SectionBits::corners);
 
+  const int levels = levels_code(metadata);
   EgModels count, length;
   std::vector<std::pair<std::string, std::string>> entries;
   for (const auto& kv : metadata)
@@ -465,23 +471,36 @@ std::vector<std::uint8_t> encode_with(const Mesh& mesh, const Quantization& q, c
     for (char c : v) rc.bits(static_cast<std::uint8_t>(c), 8);
   }
   section(&SectionBits::metadata);
-
-  const auto body = rc.finish();
-  w.raw(body.data(), body.size());
-  const std::uint32_t crc = checksum(w.bytes.data(), w.bytes.size());
-  for (int i = 0; i < 4; ++i) w.u8(static_cast<std::uint8_t>(crc >> (8 * i)));
-  return std::move(w.bytes);
 }
 
 }  // namespace
 
 std::vector<std::uint8_t> encode_v3(const Mesh& mesh, const Quantization& q, const GridPoints& grid,
                                     const std::map<std::string, std::string>& metadata, SectionBits* bits) {
+  const int n = mesh.num_vertices();
+  const auto head = header_bytes(mesh, q, levels_code(metadata));
+  RangeEncoder after_faces;
+  FaceModels fm;
+  RangeFaceSink sink(after_faces, fm);
+  std::vector<std::vector<int>> faces;
+  encode_faces(mesh.faces, n, &faces, 3, sink);
+  const auto edges = unique_edges(mesh);
+  const Predictors pred = predictors(faces, edges, n);
+  const auto classes = edge_classes(faces, edges, grid);
+
   std::vector<std::uint8_t> best;
   // Bits 0-1: the prediction; bit 2: coordinate copying.
-  for (int mode : {4, 5, 6, 0, 1, 2}) {
+  for (int mode : {4, 5, 6, 0, 1, 2, 3}) {
+    RangeEncoder rc = after_faces;
     SectionBits sb;
-    auto s = encode_with(mesh, q, grid, metadata, mode, &sb);
+    sb.header_bytes = head.size();
+    sb.faces = after_faces.cost_256() / 256.0;
+    encode_rest(rc, mesh, q, grid, metadata, mode, edges, pred, classes, sb);
+    const auto body = rc.finish();
+    std::vector<std::uint8_t> s = head;
+    s.insert(s.end(), body.begin(), body.end());
+    const std::uint32_t crc = checksum(s.data(), s.size());
+    for (int i = 0; i < 4; ++i) s.push_back(static_cast<std::uint8_t>(crc >> (8 * i)));
     if (best.empty() || s.size() < best.size()) {
       best = std::move(s);
       if (bits) *bits = sb;
@@ -530,12 +549,11 @@ DecodedStream decode_v3(const std::uint8_t* data, std::size_t size, const std::s
   if (body_size > 0 && body[body_size - 1] == 0) in.fail("range-coded body ends in a zero byte (not canonical)");
 
   BodyReader br(body, body_size, source);
-  const int mode = static_cast<int>(br.bits(3));
-  if ((mode & 3) >= kNumPredictions) br.fail("unknown coordinate prediction " + std::to_string(mode));
   FaceModels fm;
   RangeFaceSource src(br, fm);
   Mesh& mesh = out.mesh;
   mesh.faces = decode_faces(src, static_cast<std::uint32_t>(nf), n, 3);
+  const int mode = static_cast<int>(br.bits(3));
 
   const auto edges = unique_edges(mesh);
   const Predictors pred = predictors(mesh.faces, edges, n);
@@ -543,12 +561,13 @@ DecodedStream decode_v3(const std::uint8_t* data, std::size_t size, const std::s
   out.grid.resize(n, 3);
   const std::int64_t top = q.max_value();
   std::vector<Candidate> cands;
+  std::vector<std::int32_t> scratch;
   for (int v = 0; v < n; ++v) {
     int copied = 0;
     for (int a = 0; a < 3; ++a) {
       const auto [guess, kind] = predict_v3(out.grid, v, a, mode & 3, pred, top);
       if (mode & 4) {
-        copy_candidates(out.grid, v, a, guess, pred.lower, cands);
+        copy_candidates(out.grid, v, a, guess, pred.lower, scratch, cands);
         if (!cands.empty()) {
           const int nc = static_cast<int>(std::min<std::size_t>(cands.size(), 3)) - 1;
           copied = br.bit(cm.copy[nc][copied]);
