@@ -284,13 +284,20 @@ TEST(ResyncWatermark, CodecPolyhedronIsDetected) {
   Mesh in_part_units = f.marked;
   in_part_units.points = 80.0 * in_part_units.points;
   in_part_units.points.rowwise() += Eigen::RowVector3d(5, -3, 2);
-  const DecodedStream d = decode(encode(in_part_units), "stream");
+  // The property is about the grid step, not the bit count: version 3's power-of-two cells are
+  // up to twice version 2's step at equal bits, so 13 bits there give a step of at most 1/4096
+  // of the longest box side, as 12 bits did in version 2.
+  CodecParams cp;
+  cp.quant_bits = 13;
+  const DecodedStream d = decode(encode(in_part_units, cp), "stream");
+  const Eigen::Vector3d box = in_part_units.points.colwise().maxCoeff() - in_part_units.points.colwise().minCoeff();
+  ASSERT_LE(d.quantization.step, box.maxCoeff() / 4095.0);
   Resynchronized r;
   const Extraction x = detect(d.mesh, &r);
-  report("codec polyhedron (12 bits), part units", r, x);
+  report("codec polyhedron (step <= 1/4095 of the box), part units", r, x);
   EXPECT_EQ(r.method, "polyhedron");
   EXPECT_FALSE(r.order_recovered);
-  // 12-bit quantisation (steps of 1/4096 of the box) is below most small coefficients' marks.
+  // Steps of 1/4096 of the box are below most small coefficients' marks.
   EXPECT_GT(x.correlation, 0.35);
   EXPECT_LT(x.p_value, 1e-50);
   EXPECT_EQ(x.message, f.message);
