@@ -173,6 +173,29 @@ TEST(ControlPolyhedron, GridCubeKeepsItsCreaseNetwork) {
     EXPECT_TRUE(c.mesh.points.row(v).isApprox(cube.points.row(c.source[v])));
 }
 
+// A thin plate (1 x 1 x 0.02): its side walls are strips between two creases, and a coarse
+// control mesh needs long thin triangles there. The aspect-ratio guard exempts triangles whose
+// corners all lie on creases; guarding them too (the behaviour before) keeps dozens of vertices
+// along the rims.
+TEST(ControlPolyhedron, ThinStripsBetweenCreasesDecimate) {
+  auto plate = grid_cube(8);
+  plate.points.col(2) *= 0.02;
+  plate = normalized(plate);
+  auto f = mm::detect_features(plate);
+  ASSERT_EQ(f.corners.size(), 8u);
+  auto s = mm::segment(plate, f);
+  mm::ControlOptions o;
+  o.target_vertices = 8;
+  auto c = mm::build_control_polyhedron(plate, f, s, o);
+  expect_manifold(c.mesh, true);
+  EXPECT_EQ(c.mesh.num_vertices(), 8);
+  EXPECT_EQ(c.mesh.creases.size(), 12u);
+  o.aspect_ratio_on_feature_triangles = true;
+  auto guarded = mm::build_control_polyhedron(plate, f, s, o);
+  expect_manifold(guarded.mesh, true);
+  EXPECT_GT(guarded.mesh.num_vertices(), 24);
+}
+
 TEST(ControlPolyhedron, FandiskCreasesFollowSharpEdges) {
   MM_REQUIRE_SHARED_MESHES();
   auto m = normalized(mm::read_mesh(mm::test::shared_mesh("fandisk.off")));

@@ -21,6 +21,11 @@ struct ControlOptions {
   // Rejects collapses leaving a triangle longer than this times its height, unless they improve
   // it: slivers make the subdivision surface ripple. 0 disables.
   double max_aspect_ratio = 8.0;
+  // Triangles whose three corners lie on the feature network (a strip between creases: an
+  // extrusion wall, a step, the annulus between concentric rims; a disc inside a crease loop)
+  // are exempt from the aspect-ratio guard unless this is set: their shape follows the creases,
+  // and guarding them kept the ABC parts' rims at hundreds of vertices.
+  bool aspect_ratio_on_feature_triangles = false;
   // Per input vertex: multiplies the cost of collapses there (empty = all 1). The fitting loop
   // raises it where the fitted surface stays too far away, so the next decimation keeps more
   // control vertices in those regions.
