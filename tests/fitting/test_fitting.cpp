@@ -53,6 +53,17 @@ TEST(Fit, FandiskFitMovesTheSurfaceOntoThePart) {
   // the Hausdorff target needs the compress loop below.
   EXPECT_LE(rel(r.stats.rms, r.stats), 0.001);
   EXPECT_LT(rel(r.stats.hausdorff, r.stats), 0.01);
+  // region_error: per target vertex, its own distance or a larger one measured from the surface
+  // to a target triangle around it; the surface's overshoot shows there and nowhere else.
+  ASSERT_EQ(r.region_error.size(), r.target_error.size());
+  ASSERT_EQ(static_cast<int>(r.target_error.size()), m.num_vertices());
+  int larger = 0;
+  for (size_t v = 0; v < r.region_error.size(); ++v) {
+    EXPECT_GE(r.region_error[v], r.target_error[v]);
+    EXPECT_LE(r.region_error[v], r.stats.hausdorff);
+    larger += r.region_error[v] > r.target_error[v];
+  }
+  EXPECT_GT(larger, 0);
   // The statistics are what measure_fit finds for the fitted control mesh.
   const auto again = mm::measure_fit(r.control, 3, m);
   EXPECT_NEAR(again.hausdorff, r.stats.hausdorff, 1e-9);
@@ -173,6 +184,42 @@ TEST(Compress, Deterministic) {
   EXPECT_EQ(a.control.faces, b.control.faces);
   EXPECT_EQ(a.control.creases, b.control.creases);
   EXPECT_TRUE(a.control.points == b.control.points);
+}
+
+// A caller's own measurement (CompressOptions::verify) decides whether a round meets the
+// tolerance: one that rejects everything leaves the tolerance unmet after every round, one that
+// accepts everything changes nothing.
+TEST(Compress, VerifyHasTheLastWord) {
+  MM_REQUIRE_SHARED_MESHES();
+  auto m = mm::read_mesh(mm::test::shared_mesh("abc7.stl"));
+  mm::CompressOptions o;
+  o.max_rounds = 3;
+  const auto plain = mm::compress(m, o);
+  ASSERT_TRUE(plain.tolerance_met);
+  int calls = 0;
+  o.verify = [&](const mm::Mesh& control) {
+    ++calls;
+    // Candidates come in the part's units, creases tagged.
+    EXPECT_FALSE(control.creases.empty());
+    EXPECT_NEAR((control.points.colwise().maxCoeff() - control.points.colwise().minCoeff()).norm(),
+                (m.points.colwise().maxCoeff() - m.points.colwise().minCoeff()).norm(),
+                0.1 * (m.points.colwise().maxCoeff() - m.points.colwise().minCoeff()).norm());
+    return 0.0;
+  };
+  const auto accepted = mm::compress(m, o);
+  EXPECT_GE(calls, 1);
+  EXPECT_TRUE(accepted.tolerance_met);
+  EXPECT_TRUE(accepted.control.points == plain.control.points);
+  EXPECT_EQ(accepted.control.faces, plain.control.faces);
+  calls = 0;
+  o.verify = [&](const mm::Mesh&) {
+    ++calls;
+    return 1.0;
+  };
+  const auto rejected = mm::compress(m, o);
+  EXPECT_GE(calls, 1);
+  EXPECT_FALSE(rejected.tolerance_met);
+  EXPECT_EQ(rejected.rounds, o.max_rounds);
 }
 
 TEST(Compress, BadInputIsRejectedWithAReason) {

@@ -106,9 +106,18 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
                                    "twice the control vertex budget of " + std::to_string(o.max_vertices) +
                                    ": no compact control polyhedron");
     auto result = fit_control_points(control.mesh, target, fit);
-    const std::vector<double> result_error = result.target_error;
+    // Where the surface is too far from the part in either direction (region_error): refining
+    // only where target vertices are too far left the rounds blind to overshoot between them.
+    const std::vector<double> result_error = result.region_error;
     const double rel = result.stats.hausdorff / result.stats.diagonal;
-    const bool fits = rel <= o.tolerance;
+    bool fits = rel <= o.tolerance;
+    // The fit samples its surface at the refined vertices; a caller's denser measurement of the
+    // candidate (in the part's units) has the last word.
+    if (fits && o.verify) {
+      Mesh candidate = result.control;
+      undo(out.normalization, candidate.points);
+      fits = o.verify(candidate) <= o.tolerance;
+    }
     const int n = control.mesh.num_vertices();
     // Best: the fewest vertices among rounds that fit, else the smallest error.
     if (!have || (fits && (!best_fits || n < best.control.num_vertices())) ||

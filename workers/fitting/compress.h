@@ -4,6 +4,8 @@
 // spend more control vertices there and fit again, until the tolerance or the vertex budget is
 // reached. Deterministic: the same input and options give the same control mesh.
 #pragma once
+#include <functional>
+
 #include "fitting/fit_control_points.h"
 #include "meshio/mesh.h"
 #include "meshio/normalize.h"
@@ -16,6 +18,12 @@ struct CompressOptions {
   int levels = 3;               // subdivision levels the fit is measured at
   double angle_degrees = 35.0;  // dihedral angle above which an edge is a crease
   int max_rounds = 6;           // decimate-and-fit rounds at most
+  // Optional: a denser measurement of a candidate control mesh (the part's units, creases and
+  // corners tagged): its symmetric Hausdorff distance relative to the part's bounding-box
+  // diagonal. When set, a round meets the tolerance only if this measurement does too (the fit's
+  // own measurement samples the subdivided surface at its vertices and can miss a narrow peak
+  // between them: blade 0.46 % by the fit, 0.53 % by the quality code's dense samples).
+  std::function<double(const Mesh& control)> verify;
 };
 
 struct CompressResult {

@@ -440,10 +440,22 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   crease.refit(R);
   auto c = correspond(R, surf, crease, refined_creases, samples, target_tris,
                       target_creases, o, false, &final_hints, nullptr);
-  out.stats = stats_of(c.surface_dist, tg.diagonal);
   // The first rows are the target vertices (sample_target puts them first).
   if (c.surface_dist.size() >= static_cast<size_t>(tg.vertices))
     out.target_error.assign(c.surface_dist.begin(), c.surface_dist.begin() + tg.vertices);
+  // The surface's overshoot is measured from refined vertices, not target vertices: charge each
+  // such distance to the three vertices of the target triangle it was measured to, so a caller
+  // refining where the error is sees both directions.
+  out.region_error = out.target_error;
+  const size_t first_refined = samples.surface.size();
+  if (!out.region_error.empty() && c.surface_dist.size() >= first_refined + static_cast<size_t>(R.rows()))
+    for (Eigen::Index v = 0; v < R.rows(); ++v) {
+      const int t = final_hints.on_target[static_cast<size_t>(v)].triangle;
+      if (t < 0) continue;
+      const double d = c.surface_dist[first_refined + static_cast<size_t>(v)];
+      for (int i : tg.tris_list[static_cast<size_t>(t)]) out.region_error[i] = std::max(out.region_error[i], d);
+    }
+  out.stats = stats_of(c.surface_dist, tg.diagonal);
   // Blame each distance on the control vertex with the largest weight in the refined vertex's row.
   out.vertex_error.assign(n, 0.0);
   std::vector<int> owner(op.S.rows(), -1);

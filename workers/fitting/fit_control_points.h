@@ -36,6 +36,9 @@ struct FitResult {
   FitStats stats;
   std::vector<double> vertex_error;   // per control vertex: largest distance it is responsible for
   std::vector<double> target_error;   // per target vertex: distance to the subdivided surface
+  // per target vertex: the larger of target_error and the distances from the subdivided surface
+  // measured to the target triangles around it (where the surface overshoots the part)
+  std::vector<double> region_error;
 };
 
 // What a fit needs of the target (its AABB trees and samples), built once and reused by every
