@@ -86,7 +86,9 @@ TEST(PreparedAsset, CorruptRecordsAreInputErrors) {
   auto huge = poly;
   for (int i = 8; i < 16; ++i) huge[static_cast<std::size_t>(i)] = 0xff;  // absurd vertex count
   EXPECT_THROW(decode_prepared(huge, basis, "huge"), InputError);
-  auto other = prepare_asset(read_mesh(test::shared_mesh("abc7.stl")), {}, "abc7");
+  // A basis of another size (abc9's polyhedron; abc7's has chamfer-cube's 24 vertices).
+  auto other = prepare_asset(read_mesh(test::shared_mesh("abc9.stl")), {}, "abc9");
+  ASSERT_NE(other.control.num_vertices(), a.control.num_vertices());
   EXPECT_THROW(decode_prepared(poly, serialize_basis(other.basis), "mismatch"), InputError);
 }
 
