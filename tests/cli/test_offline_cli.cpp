@@ -361,3 +361,27 @@ TEST(CliMark, BadInputsExit2NamingTheFileAndWriteNothing) {
   EXPECT_EQ(meshmark(s, {"embed", o.original, o.alice, out, "-m", "\xff"}).code, 64);
   EXPECT_FALSE(exists(out));
 }
+
+// The fandisk target as a user runs it: at most 100 control vertices, Hausdorff <= 0.5 %
+// and RMS <= 0.1 % of the diagonal, measured on the written stream by `compare` (the quality
+// code). Without --rms-tolerance the bit search may stop at a grid whose noise lifts the RMS
+// above 0.1 % (8 bits: 0.13 %), so the option must reach the bits that keep it.
+TEST(CliCompress, FandiskTargetWithRmsTolerance) {
+  MM_REQUIRE_SHARED_MESHES();
+  Scratch s;
+  const std::string in = shared_mesh("fandisk.off"), out = s / "f.mmc";
+  const CliRun r = meshmark(s, {"compress", in, out, "--max-vertices", "100", "--tolerance", "0.005",
+                                "--rms-tolerance", "0.001", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json j = json::parse(r.out);
+  EXPECT_LE(j["control_vertices"].get<int>(), 100);
+  EXPECT_TRUE(j["tolerance_met"].get<bool>());
+  EXPECT_TRUE(j["rms_tolerance_met"].get<bool>());
+  EXPECT_DOUBLE_EQ(j["rms_tolerance"].get<double>(), 0.001);
+  const CliRun c = meshmark(s, {"compare", in, out, "--json"});
+  ASSERT_EQ(c.code, 0) << c.err;
+  const json m = json::parse(c.out);
+  EXPECT_LE(m["hausdorff"].get<double>(), 0.005);
+  EXPECT_LE(m["rms"].get<double>(), 0.001);
+  EXPECT_NEAR(m["rms"].get<double>(), j["rms"].get<double>(), 1e-12);
+}
