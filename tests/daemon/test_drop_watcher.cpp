@@ -47,7 +47,9 @@ TEST(DropNames, IgnoredAndCustomerNames) {
     EXPECT_TRUE(is_ignored_name(n)) << n;
   for (const char* n : {"part.stl", "fandisk_quads.off", "a.b.c.obj"}) EXPECT_FALSE(is_ignored_name(n)) << n;
   EXPECT_TRUE(is_valid_customer_name("acme-2_b.c"));
-  for (const char* n : {"", ".acme", "ac me", "a/b", "..", std::string(65, 'a').c_str()})
+  // std::string elements: a c_str() of a temporary in the list would dangle inside the loop.
+  for (const std::string& n : {std::string(), std::string(".acme"), std::string("ac me"), std::string("a/b"),
+                               std::string(".."), std::string(65, 'a')})
     EXPECT_FALSE(is_valid_customer_name(n)) << n;
 }
 
