@@ -32,8 +32,9 @@ struct OMesh : OpenMesh::TriMesh_ArrayKernelT<Traits> {
     const HalfedgeHandle v1v0 = opposite_halfedge_handle(v0v1);
     const VertexHandle v0 = to_vertex_handle(v1v0), v1 = to_vertex_handle(v0v1);
     if (status(v0).deleted() || status(v1).deleted()) return false;
-    const bool t01 = !is_boundary(v0v1) && valence(face_handle(v0v1)) == 3;
-    const bool t10 = !is_boundary(v1v0) && valence(face_handle(v1v0)) == 3;
+    // OpenMesh also asks for the face's valence to be 3; every face here is a triangle.
+    const bool t01 = !is_boundary(v0v1);
+    const bool t10 = !is_boundary(v1v0);
     const VertexHandle n01 = to_vertex_handle(next_halfedge_handle(v0v1));
     const VertexHandle n10 = to_vertex_handle(next_halfedge_handle(v1v0));
     // The edges v1-vl and vl-v0 must not both be boundary edges.
@@ -206,20 +207,28 @@ class ModSliverGuardT : public OpenMesh::Decimater::ModBaseT<MeshT> {
 
   float collapse_priority(const CollapseInfo& ci) override {
     auto& m = Base::mesh();
-    // The worst guarded triangle around v0 before and after moving v0 onto v1.
-    double before = 0, after = 0;
+    // The worst guarded triangle around v0 after moving v0 onto v1, and only when that is over
+    // the limit the worst before (the same answer; most candidates pass on the first).
+    double after = 0;
+    for (auto h : m.voh_range(ci.v0)) {
+      const auto f = m.face_handle(h);
+      if (!f.is_valid()) continue;
+      const auto v2 = m.to_vertex_handle(h), v3 = m.to_vertex_handle(m.next_halfedge_handle(h));
+      if (v2 == ci.v1 || v3 == ci.v1) continue;
+      const bool guarded_after =
+          !exempt_ || !(m.status(ci.v1).feature() && m.status(v2).feature() && m.status(v3).feature());
+      if (guarded_after) after = std::max(after, aspect(ci.p1, m.point(v2), m.point(v3)));
+    }
+    if (after <= max_aspect_) return float(Base::LEGAL_COLLAPSE);
+    double before = 0;
     for (auto h : m.voh_range(ci.v0)) {
       const auto f = m.face_handle(h);
       if (!f.is_valid()) continue;
       const auto v2 = m.to_vertex_handle(h), v3 = m.to_vertex_handle(m.next_halfedge_handle(h));
       const bool guarded = !exempt_ || !(m.status(ci.v0).feature() && m.status(v2).feature() && m.status(v3).feature());
       if (guarded) before = std::max(before, aspect(m.point(ci.v0), m.point(v2), m.point(v3)));
-      if (v2 == ci.v1 || v3 == ci.v1) continue;
-      const bool guarded_after =
-          !exempt_ || !(m.status(ci.v1).feature() && m.status(v2).feature() && m.status(v3).feature());
-      if (guarded_after) after = std::max(after, aspect(ci.p1, m.point(v2), m.point(v3)));
     }
-    return after <= max_aspect_ || after < before ? float(Base::LEGAL_COLLAPSE) : float(Base::ILLEGAL_COLLAPSE);
+    return after < before ? float(Base::LEGAL_COLLAPSE) : float(Base::ILLEGAL_COLLAPSE);
   }
 
  private:
@@ -260,6 +269,9 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
   // Decimates until `n_vertices` are left (of all vertices ever added, like DecimaterT) with the
   // cost module `cost`, which must be the one added as the non-binary module. A later call with
   // a smaller count continues the same collapse sequence (the heap is kept).
+  // The binary modules, in the order they were added (BaseDecimaterT keeps its list private).
+  void set_guards(std::vector<OpenMesh::Decimater::ModBaseT<MeshT>*> guards) { guards_ = std::move(guards); }
+
   size_t decimate_to(size_t n_vertices, CostModule& cost) {
     if (!this->is_initialized() || n_vertices >= mesh_.n_vertices()) return 0;
     const size_t wanted = mesh_.n_vertices() - n_vertices;
@@ -281,7 +293,7 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
       const HalfedgeHandle v0v1 = mesh_.property(collapse_target_, vp);
       heap.pop_front();
       CollapseInfo ci(mesh_, v0v1);
-      if (!this->is_collapse_legal(ci)) continue;
+      if (!legal(ci)) continue;
       support.clear();
       for (auto w : mesh_.vv_range(ci.v0)) support.push_back(w);
       this->preprocess_collapse(ci);
@@ -308,14 +320,57 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
   };
   using Heap = OpenMesh::Utils::HeapT<VertexHandle, HeapInterface>;
 
+  // BaseDecimaterT::is_collapse_legal's tests (with OMesh::is_collapse_ok's), the cheap flag
+  // tests first and the one-ring tests last: the same answer, as each test only says no.
+  bool legal(const CollapseInfo& ci) {
+    if (mesh_.status(mesh_.edge_handle(ci.v0v1)).deleted() || mesh_.status(ci.v0).deleted() ||
+        mesh_.status(ci.v1).deleted())
+      return false;
+    if (!cheap_legal(ci.v0, ci.v0v1)) return false;
+    // There have to be at least 2 incident faces at v0.
+    if (mesh_.cw_rotated_halfedge_handle(mesh_.cw_rotated_halfedge_handle(ci.v0v1)) == ci.v0v1) return false;
+    if (mesh_.is_boundary(ci.v0) && ci.vl.is_valid() && ci.vr.is_valid()) return false;
+    if (!mesh_.is_collapse_ok(ci.v0v1)) return false;
+    // vl and vr joined by an edge and both of valence 3: valence first, it stops after 4.
+    if (ci.vl.is_valid() && ci.vr.is_valid() && valence_is_3(ci.vl) && valence_is_3(ci.vr))
+      for (auto h : mesh_.voh_range(ci.vl))
+        if (mesh_.to_vertex_handle(h) == ci.vr) return false;
+    return true;
+  }
+
+  // The tests of legal() that depend on v0 and the edge only: locked, the feature rule, a
+  // boundary vertex only onto a boundary vertex.
+  bool cheap_legal(VertexHandle v0, HalfedgeHandle v0v1) {
+    const auto s0 = mesh_.status(v0);
+    if (s0.locked()) return false;
+    if (s0.feature() && !mesh_.status(mesh_.edge_handle(v0v1)).feature()) return false;
+    if (mesh_.is_boundary(v0) && !mesh_.is_boundary(mesh_.to_vertex_handle(v0v1))) return false;
+    return true;
+  }
+
+  bool valence_is_3(VertexHandle v) {
+    int n = 0;
+    for (auto h : mesh_.voh_range(v)) {
+      (void)h;
+      if (++n > 3) return false;
+    }
+    return n == 3;
+  }
+
   void heap_vertex(VertexHandle vh) {
     // Candidates by cost, ties in ring order (DecimaterT keeps the first of equal costs): the
-    // first that is legal and passes the binary modules is DecimaterT's choice.
+    // first that is legal and passes the binary modules is DecimaterT's choice. Candidates
+    // that fail the cheap tests of legal() are left out before their cost is computed (a
+    // locked vertex has none).
     candidates_.clear();
-    for (auto h : mesh_.voh_range(vh)) {
-      const float cost = cost_->collapse_priority(CollapseInfo(mesh_, h));
-      if (cost >= 0.0f && cost < FLT_MAX) candidates_.push_back({cost, static_cast<int>(candidates_.size()), h});
-    }
+    int order = 0;
+    if (!mesh_.status(vh).locked())
+      for (auto h : mesh_.voh_range(vh)) {
+        ++order;
+        if (!cheap_legal(vh, h)) continue;
+        const float cost = cost_->collapse_priority(CollapseInfo(mesh_, h));
+        if (cost >= 0.0f && cost < FLT_MAX) candidates_.push_back({cost, order, h});
+      }
     std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
       return a.cost < b.cost || (a.cost == b.cost && a.order < b.order);
     });
@@ -323,11 +378,17 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
     HalfedgeHandle target;
     for (const auto& cand : candidates_) {
       CollapseInfo ci(mesh_, cand.h);
-      if (!this->is_collapse_legal(ci)) continue;
-      // Base::collapse_priority is the cost module's value unless a binary module vetoes.
-      const float prio = this->collapse_priority(ci);
-      if (prio >= 0.0f && prio < best) {
-        best = prio;
+      if (!legal(ci)) continue;
+      // Base::collapse_priority is the cost module's value (cand.cost, the same computation)
+      // unless a binary module vetoes.
+      bool vetoed = false;
+      for (auto* guard : guards_)
+        if (guard->collapse_priority(ci) < 0.0f) {
+          vetoed = true;
+          break;
+        }
+      if (!vetoed) {
+        best = cand.cost;
         target = cand.h;
         break;
       }
@@ -352,6 +413,7 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
     HalfedgeHandle h;
   };
   std::vector<Candidate> candidates_;
+  std::vector<OpenMesh::Decimater::ModBaseT<MeshT>*> guards_;
   MeshT& mesh_;
   CostModule* cost_ = nullptr;
   std::unique_ptr<Heap> heap_;
@@ -367,15 +429,22 @@ using Decimater = LazyDecimaterT<OMesh, ModFeatureQuadricT<OMesh>>;
 
 // One decimation of the input in progress: the mesh, its flags and the decimater with its heap.
 struct ControlDecimation::Impl {
-  OMesh om;
+  // The input as an OpenMesh mesh with its flags, built by the first call: every decimation
+  // from the input starts from a copy (building it was a tenth of a growth round).
+  OMesh input;
   std::vector<int> source;
   std::vector<char> is_corner;
   int split_vertices = 0;
-  std::unique_ptr<Decimater> dec;
-  ModFeatureQuadricT<OMesh>::Handle hq;
-  OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle hn;
-  ModSliverGuardT<OMesh>::Handle ha;
-  ControlOptions options;  // of the decimation so far (target_vertices: where it stopped)
+  struct Round {
+    explicit Round(const OMesh& input) : om(input) {}
+    OMesh om;  // before dec: the decimater removes its properties from om when destroyed
+    std::unique_ptr<Decimater> dec;
+    ModFeatureQuadricT<OMesh>::Handle hq;
+    OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle hn;
+    ModSliverGuardT<OMesh>::Handle ha;
+    ControlOptions options;  // of the decimation so far (target_vertices: where it stopped)
+  };
+  std::unique_ptr<Round> round;
 };
 
 ControlDecimation::ControlDecimation(const Mesh& mesh, const Features& features,
@@ -400,21 +469,75 @@ ControlPolyhedron build_control_polyhedron(const Mesh& mesh, const Features& fea
 
 ControlPolyhedron ControlDecimation::build(const ControlOptions& options) {
   const Mesh& mesh = mesh_;
-  const Features& features = features_;
   const Segmentation& segmentation = segmentation_;
   const int n = mesh.num_vertices();
   const size_t target = static_cast<size_t>(std::max(options.target_vertices, 4));
   // A greedy decimation stopped at N vertices is the start of the same decimation to fewer:
   // with the same costs, continue it instead of starting again from the input.
-  if (impl_ && same_except_target(impl_->options, options) &&
-      target <= static_cast<size_t>(std::max(impl_->options.target_vertices, 4))) {
-    impl_->dec->decimate_to(target, impl_->dec->module(impl_->hq));
-    impl_->options.target_vertices = options.target_vertices;
+  if (impl_ && impl_->round && same_except_target(impl_->round->options, options) &&
+      target <= static_cast<size_t>(std::max(impl_->round->options.target_vertices, 4))) {
+    Impl::Round& r = *impl_->round;
+    r.dec->decimate_to(target, r.dec->module(r.hq));
+    r.options.target_vertices = options.target_vertices;
     return extract();
   }
-  impl_.reset();
+  if (!impl_) build_input();
+  impl_->round.reset();
+  impl_->round = std::make_unique<Impl::Round>(impl_->input);
+  Impl::Round& round = *impl_->round;
+  OMesh& om = round.om;
+  const std::vector<int>& source = impl_->source;
+  const std::vector<char>& is_corner = impl_->is_corner;
+
+  std::vector<int> chain_of(om.n_vertices(), -1), chain_min;
+  for (const auto& line : segmentation.polylines) {
+    const bool closed = line.size() > 2 && line.front() == line.back();
+    const int id = static_cast<int>(chain_min.size());
+    chain_min.push_back(closed ? options.min_closed_loop : options.min_open_chain_interior);
+    for (size_t k = 0; k < line.size(); ++k)
+      if (!is_corner[line[k]]) chain_of[line[k]] = id;
+  }
+
+  round.dec = std::make_unique<Decimater>(om);
+  Decimater& dec = *round.dec;
+  auto& hq = round.hq;
+  auto& hn = round.hn;
+  auto& ha = round.ha;
+  dec.add(hq);
+  dec.add(hn);
+  dec.module(hn).set_max_normal_deviation(options.max_normal_deviation_degrees);
+  if (options.max_aspect_ratio > 0) {
+    dec.add(ha);
+    dec.module(ha).set_aspect_ratio(options.max_aspect_ratio);
+    dec.module(ha).set_exempt_feature_triangles(!options.aspect_ratio_on_feature_triangles);
+  }
+  if (!dec.initialize()) throw std::logic_error("decimater modules failed to initialise");
+  if (options.max_aspect_ratio > 0)
+    dec.set_guards({&dec.module(hn), &dec.module(ha)});
+  else
+    dec.set_guards({&dec.module(hn)});
+  dec.module(hq).set_chains(chain_of, chain_min);
+  if (!options.importance.empty()) {
+    if (static_cast<int>(options.importance.size()) != n) {
+      impl_->round.reset();
+      throw std::invalid_argument("importance must have one value per vertex");
+    }
+    std::vector<double> imp(om.n_vertices());
+    for (size_t v = 0; v < imp.size(); ++v) imp[v] = std::max(options.importance[source[v]], 1e-9);
+    dec.module(hq).set_importance(imp);
+  }
+  om.update_face_normals();
+  dec.decimate_to(target, dec.module(hq));
+  round.options = options;
+  return extract();
+}
+
+void ControlDecimation::build_input() {
+  const Mesh& mesh = mesh_;
+  const Features& features = features_;
+  const int n = mesh.num_vertices();
   impl_ = std::make_unique<Impl>();
-  OMesh& om = impl_->om;
+  OMesh& om = impl_->input;
   std::vector<int>& source = impl_->source;
   std::vector<OMesh::VertexHandle> vh(n);
   for (int i = 0; i < n; ++i) {
@@ -458,48 +581,10 @@ ControlPolyhedron ControlDecimation::build(const ControlOptions& options) {
     is_corner[v.idx()] = is_corner[source[v.idx()]];
     if (is_corner[v.idx()]) om.status(v).set_locked(true);
   }
-
-  std::vector<int> chain_of(om.n_vertices(), -1), chain_min;
-  for (const auto& line : segmentation.polylines) {
-    const bool closed = line.size() > 2 && line.front() == line.back();
-    const int id = static_cast<int>(chain_min.size());
-    chain_min.push_back(closed ? options.min_closed_loop : options.min_open_chain_interior);
-    for (size_t k = 0; k < line.size(); ++k)
-      if (!is_corner[line[k]]) chain_of[line[k]] = id;
-  }
-
-  impl_->dec = std::make_unique<Decimater>(om);
-  Decimater& dec = *impl_->dec;
-  auto& hq = impl_->hq;
-  auto& hn = impl_->hn;
-  auto& ha = impl_->ha;
-  dec.add(hq);
-  dec.add(hn);
-  dec.module(hn).set_max_normal_deviation(options.max_normal_deviation_degrees);
-  if (options.max_aspect_ratio > 0) {
-    dec.add(ha);
-    dec.module(ha).set_aspect_ratio(options.max_aspect_ratio);
-    dec.module(ha).set_exempt_feature_triangles(!options.aspect_ratio_on_feature_triangles);
-  }
-  if (!dec.initialize()) throw std::logic_error("decimater modules failed to initialise");
-  dec.module(hq).set_chains(chain_of, chain_min);
-  if (!options.importance.empty()) {
-    if (static_cast<int>(options.importance.size()) != n) {
-      impl_.reset();
-      throw std::invalid_argument("importance must have one value per vertex");
-    }
-    std::vector<double> imp(om.n_vertices());
-    for (size_t v = 0; v < imp.size(); ++v) imp[v] = std::max(options.importance[source[v]], 1e-9);
-    dec.module(hq).set_importance(imp);
-  }
-  om.update_face_normals();
-  dec.decimate_to(target, dec.module(hq));
-  impl_->options = options;
-  return extract();
 }
 
 ControlPolyhedron ControlDecimation::extract() const {
-  const OMesh& om = impl_->om;
+  const OMesh& om = impl_->round->om;
   const std::vector<int>& source = impl_->source;
   const std::vector<char>& is_corner = impl_->is_corner;
   ControlPolyhedron out;

@@ -59,6 +59,7 @@ class ControlDecimation {
 
  private:
   ControlPolyhedron extract() const;
+  void build_input();  // the input as an OpenMesh mesh with its flags, once
   struct Impl;
   std::unique_ptr<Impl> impl_;
   const Mesh& mesh_;
