@@ -6,10 +6,10 @@
 #include <OpenMesh/Tools/Decimater/BaseDecimaterT.hh>
 #include <OpenMesh/Tools/Utils/HeapT.hh>
 #include <OpenMesh/Tools/Decimater/ModBaseT.hh>
-#include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
 #include <algorithm>
 #include <memory>
 #include <cfloat>
+#include <cmath>
 #include <set>
 #include <stdexcept>
 
@@ -45,13 +45,32 @@ struct OMesh : OpenMesh::TriMesh_ArrayKernelT<Traits> {
       }
     // The one-rings of v0 and v1 may share only the two opposite vertices.
     ring_.clear();
-    for (auto w : vv_range(v1)) ring_.push_back(w);
-    for (auto w : vv_range(v0))
-      if (std::find(ring_.begin(), ring_.end(), w) != ring_.end() && !(w == n01 && t01) && !(w == n10 && t10))
-        return false;
+    any_outgoing(v1, [&](HalfedgeHandle h) {
+      ring_.push_back(to_vertex_handle(h));
+      return false;
+    });
+    if (any_outgoing(v0, [&](HalfedgeHandle h) {
+          const VertexHandle w = to_vertex_handle(h);
+          return std::find(ring_.begin(), ring_.end(), w) != ring_.end() && !(w == n01 && t01) && !(w == n10 && t10);
+        }))
+      return false;
     // An edge between two boundary vertices must be a boundary edge.
     if (is_boundary(v0) && is_boundary(v1) && !is_boundary(v0v1) && !is_boundary(v1v0)) return false;
     return true;
+  }
+
+  // pred(h) for the outgoing halfedges of v until one says true (then true). The same set as
+  // voh_range without OpenMesh's generic circulator; for tests whose answer is order-free.
+  template <class Pred>
+  bool any_outgoing(VertexHandle v, Pred pred) const {
+    const HalfedgeHandle start = halfedge_handle(v);
+    if (!start.is_valid()) return false;
+    HalfedgeHandle h = start;
+    do {
+      if (pred(h)) return true;
+      h = cw_rotated_halfedge_handle(h);
+    } while (h != start);
+    return false;
   }
 
  private:
@@ -190,6 +209,41 @@ class ModFeatureQuadricT : public OpenMesh::Decimater::ModBaseT<MeshT> {
 };
 
 
+// OpenMesh's ModNormalFlippingT (reject a collapse that turns the normal of a triangle around
+// v0, other than the two that vanish, by more than the limit), with the same arithmetic but
+// without moving v0 in the mesh and OpenMesh's face circulators: it ran for every candidate.
+template <class MeshT>
+class ModFlipGuardT : public OpenMesh::Decimater::ModBaseT<MeshT> {
+ public:
+  DECIMATING_MODULE(ModFlipGuardT, MeshT, FlipGuard);
+  explicit ModFlipGuardT(MeshT& mesh) : Base(mesh, true) {}
+  void set_max_normal_deviation(double degrees) {
+    const double max_deviation = degrees / 180.0 * M_PI;  // as ModNormalFlippingT
+    min_cos_ = cos(max_deviation);
+  }
+
+  float collapse_priority(const CollapseInfo& ci) override {
+    const auto& m = Base::mesh();
+    const bool flips = m.any_outgoing(ci.v0, [&](auto h) {
+      const auto f = m.face_handle(h);
+      if (!f.is_valid() || f == ci.fl || f == ci.fr) return false;
+      // calc_face_normal(f)'s corners in its order, v0 moved onto p1.
+      const auto h0 = m.halfedge_handle(f), h1 = m.next_halfedge_handle(h0), h2 = m.next_halfedge_handle(h1);
+      auto at = [&](decltype(h0) x) -> const OpenMesh::Vec3d& {
+        const auto v = m.to_vertex_handle(x);
+        return v == ci.v0 ? ci.p1 : m.point(v);
+      };
+      const OpenMesh::Vec3d n2 =
+          static_cast<const typename MeshT::PolyMesh&>(m).calc_face_normal(at(h0), at(h1), at(h2));
+      return dot(m.normal(f), n2) < min_cos_;
+    });
+    return float(flips ? Base::ILLEGAL_COLLAPSE : Base::LEGAL_COLLAPSE);
+  }
+
+ private:
+  double min_cos_ = 0.0;
+};
+
 // OpenMesh's ModAspectRatioT (reject a collapse that leaves a triangle longer than `max` times
 // its height, unless it improves the worst one), except for triangles whose three corners all
 // lie on the feature network. Those span a strip between creases (an extrusion wall, a step,
@@ -210,24 +264,24 @@ class ModSliverGuardT : public OpenMesh::Decimater::ModBaseT<MeshT> {
     // The worst guarded triangle around v0 after moving v0 onto v1, and only when that is over
     // the limit the worst before (the same answer; most candidates pass on the first).
     double after = 0;
-    for (auto h : m.voh_range(ci.v0)) {
-      const auto f = m.face_handle(h);
-      if (!f.is_valid()) continue;
+    m.any_outgoing(ci.v0, [&](auto h) {
+      if (!m.face_handle(h).is_valid()) return false;
       const auto v2 = m.to_vertex_handle(h), v3 = m.to_vertex_handle(m.next_halfedge_handle(h));
-      if (v2 == ci.v1 || v3 == ci.v1) continue;
+      if (v2 == ci.v1 || v3 == ci.v1) return false;
       const bool guarded_after =
           !exempt_ || !(m.status(ci.v1).feature() && m.status(v2).feature() && m.status(v3).feature());
       if (guarded_after) after = std::max(after, aspect(ci.p1, m.point(v2), m.point(v3)));
-    }
+      return false;
+    });
     if (after <= max_aspect_) return float(Base::LEGAL_COLLAPSE);
     double before = 0;
-    for (auto h : m.voh_range(ci.v0)) {
-      const auto f = m.face_handle(h);
-      if (!f.is_valid()) continue;
+    m.any_outgoing(ci.v0, [&](auto h) {
+      if (!m.face_handle(h).is_valid()) return false;
       const auto v2 = m.to_vertex_handle(h), v3 = m.to_vertex_handle(m.next_halfedge_handle(h));
       const bool guarded = !exempt_ || !(m.status(ci.v0).feature() && m.status(v2).feature() && m.status(v3).feature());
       if (guarded) before = std::max(before, aspect(m.point(ci.v0), m.point(v2), m.point(v3)));
-    }
+      return false;
+    });
     return after < before ? float(Base::LEGAL_COLLAPSE) : float(Base::ILLEGAL_COLLAPSE);
   }
 
@@ -272,6 +326,12 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
   // The binary modules, in the order they were added (BaseDecimaterT keeps its list private).
   void set_guards(std::vector<OpenMesh::Decimater::ModBaseT<MeshT>*> guards) { guards_ = std::move(guards); }
 
+  // Whether each halfedge's collapse passes (legal, no binary module's veto) on the mesh as it
+  // stands before the first collapse: 0 not known yet, 1 yes, -1 no. Decimations of the same
+  // input with the same locks and binary modules but other costs (compress()'s growth rounds:
+  // only the importance changes) can share it, which spares the checks of the initial heap.
+  void set_initial_verdicts(std::vector<signed char>* verdicts) { verdicts_ = verdicts; }
+
   size_t decimate_to(size_t n_vertices, CostModule& cost) {
     if (!this->is_initialized() || n_vertices >= mesh_.n_vertices()) return 0;
     const size_t wanted = mesh_.n_vertices() - n_vertices;
@@ -279,10 +339,13 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
     if (!heap_) {
       heap_ = std::make_unique<Heap>(HeapInterface{mesh_, priority_, heap_position_});
       heap_->reserve(mesh_.n_vertices());
+      if (verdicts_) verdicts_->resize(mesh_.n_halfedges(), 0);
+      initial_ = verdicts_ != nullptr;
       for (auto v : mesh_.vertices()) {
         heap_->reset_heap_position(v);
         if (!mesh_.status(v).deleted()) heap_vertex(v);
       }
+      initial_ = false;
     }
     Heap& heap = *heap_;
     const bool update_normals = mesh_.has_face_normals();
@@ -332,9 +395,9 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
     if (mesh_.is_boundary(ci.v0) && ci.vl.is_valid() && ci.vr.is_valid()) return false;
     if (!mesh_.is_collapse_ok(ci.v0v1)) return false;
     // vl and vr joined by an edge and both of valence 3: valence first, it stops after 4.
-    if (ci.vl.is_valid() && ci.vr.is_valid() && valence_is_3(ci.vl) && valence_is_3(ci.vr))
-      for (auto h : mesh_.voh_range(ci.vl))
-        if (mesh_.to_vertex_handle(h) == ci.vr) return false;
+    if (ci.vl.is_valid() && ci.vr.is_valid() && valence_is_3(ci.vl) && valence_is_3(ci.vr) &&
+        mesh_.any_outgoing(ci.vl, [&](HalfedgeHandle h) { return mesh_.to_vertex_handle(h) == ci.vr; }))
+      return false;
     return true;
   }
 
@@ -348,12 +411,18 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
     return true;
   }
 
+  // Legal and not vetoed by a binary module (the cheap tests of legal() already passed). The
+  // modules first: they only read the geometry around v0, and they say no to a third of the
+  // candidates, legal() to almost none.
+  bool passes(const CollapseInfo& ci) {
+    for (auto* guard : guards_)
+      if (guard->collapse_priority(ci) < 0.0f) return false;
+    return legal(ci);
+  }
+
   bool valence_is_3(VertexHandle v) {
     int n = 0;
-    for (auto h : mesh_.voh_range(v)) {
-      (void)h;
-      if (++n > 3) return false;
-    }
+    if (mesh_.any_outgoing(v, [&](HalfedgeHandle) { return ++n > 3; })) return false;
     return n == 3;
   }
 
@@ -377,17 +446,17 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
     float best = FLT_MAX;
     HalfedgeHandle target;
     for (const auto& cand : candidates_) {
-      CollapseInfo ci(mesh_, cand.h);
-      if (!legal(ci)) continue;
+      bool ok;
+      if (initial_) {
+        signed char& verdict = (*verdicts_)[cand.h.idx()];
+        if (verdict == 0) verdict = passes(CollapseInfo(mesh_, cand.h)) ? 1 : -1;
+        ok = verdict > 0;
+      } else {
+        ok = passes(CollapseInfo(mesh_, cand.h));
+      }
       // Base::collapse_priority is the cost module's value (cand.cost, the same computation)
       // unless a binary module vetoes.
-      bool vetoed = false;
-      for (auto* guard : guards_)
-        if (guard->collapse_priority(ci) < 0.0f) {
-          vetoed = true;
-          break;
-        }
-      if (!vetoed) {
+      if (ok) {
         best = cand.cost;
         target = cand.h;
         break;
@@ -414,6 +483,8 @@ class LazyDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
   };
   std::vector<Candidate> candidates_;
   std::vector<OpenMesh::Decimater::ModBaseT<MeshT>*> guards_;
+  std::vector<signed char>* verdicts_ = nullptr;
+  bool initial_ = false;  // building the initial heap with verdicts_
   MeshT& mesh_;
   CostModule* cost_ = nullptr;
   std::unique_ptr<Heap> heap_;
@@ -440,11 +511,15 @@ struct ControlDecimation::Impl {
     OMesh om;  // before dec: the decimater removes its properties from om when destroyed
     std::unique_ptr<Decimater> dec;
     ModFeatureQuadricT<OMesh>::Handle hq;
-    OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle hn;
+    ModFlipGuardT<OMesh>::Handle hn;
     ModSliverGuardT<OMesh>::Handle ha;
     ControlOptions options;  // of the decimation so far (target_vertices: where it stopped)
   };
   std::unique_ptr<Round> round;
+  // Decimater::set_initial_verdicts for decimations with these options (importance and target
+  // aside: they change only the costs).
+  std::vector<signed char> verdicts;
+  ControlOptions verdict_options;
 };
 
 ControlDecimation::ControlDecimation(const Mesh& mesh, const Features& features,
@@ -453,11 +528,15 @@ ControlDecimation::ControlDecimation(const Mesh& mesh, const Features& features,
 ControlDecimation::~ControlDecimation() = default;
 
 namespace {
-bool same_except_target(const ControlOptions& a, const ControlOptions& b) {
+// Same locks and binary modules, so the same legal collapses on the input.
+bool same_constraints(const ControlOptions& a, const ControlOptions& b) {
   return a.min_open_chain_interior == b.min_open_chain_interior && a.min_closed_loop == b.min_closed_loop &&
          a.max_normal_deviation_degrees == b.max_normal_deviation_degrees &&
          a.max_aspect_ratio == b.max_aspect_ratio &&
-         a.aspect_ratio_on_feature_triangles == b.aspect_ratio_on_feature_triangles && a.importance == b.importance;
+         a.aspect_ratio_on_feature_triangles == b.aspect_ratio_on_feature_triangles;
+}
+bool same_except_target(const ControlOptions& a, const ControlOptions& b) {
+  return same_constraints(a, b) && a.importance == b.importance;
 }
 }  // namespace
 
@@ -513,10 +592,15 @@ ControlPolyhedron ControlDecimation::build(const ControlOptions& options) {
   }
   if (!dec.initialize()) throw std::logic_error("decimater modules failed to initialise");
   if (options.max_aspect_ratio > 0)
-    dec.set_guards({&dec.module(hn), &dec.module(ha)});
+    dec.set_guards({&dec.module(ha), &dec.module(hn)});
   else
     dec.set_guards({&dec.module(hn)});
   dec.module(hq).set_chains(chain_of, chain_min);
+  if (!same_constraints(impl_->verdict_options, options)) {
+    impl_->verdicts.clear();
+    impl_->verdict_options = options;
+  }
+  dec.set_initial_verdicts(&impl_->verdicts);
   if (!options.importance.empty()) {
     if (static_cast<int>(options.importance.size()) != n) {
       impl_->round.reset();
