@@ -260,39 +260,78 @@ class ModSliverGuardT : public OpenMesh::Decimater::ModBaseT<MeshT> {
   void set_exempt_feature_triangles(bool exempt) { exempt_ = exempt; }
 
   float collapse_priority(const CollapseInfo& ci) override {
-    auto& m = Base::mesh();
-    // The worst guarded triangle around v0 after moving v0 onto v1, and only when that is over
-    // the limit the worst before (the same answer; most candidates pass on the first).
+    // The worst guarded triangle around v0 after moving v0 onto v1; only when that is over the
+    // limit the worst before, and then only until after reaches it (the same answer as
+    // computing both: most candidates pass on the first). The decimater asks for v0's
+    // candidates one after another, so v0's triangles (and the worst before) are kept until v0
+    // changes or a collapse changes the mesh.
+    if (ci.v0 != ring_v0_) load_ring(ci.v0);
+    const bool f1 = Base::mesh().status(ci.v1).feature();
     double after = 0;
-    m.any_outgoing(ci.v0, [&](auto h) {
-      if (!m.face_handle(h).is_valid()) return false;
-      const auto v2 = m.to_vertex_handle(h), v3 = m.to_vertex_handle(m.next_halfedge_handle(h));
-      if (v2 == ci.v1 || v3 == ci.v1) return false;
-      const bool guarded_after =
-          !exempt_ || !(m.status(ci.v1).feature() && m.status(v2).feature() && m.status(v3).feature());
-      if (guarded_after) after = std::max(after, aspect(ci.p1, m.point(v2), m.point(v3)));
-      return false;
-    });
-    if (after <= max_aspect_) return float(Base::LEGAL_COLLAPSE);
-    double before = 0;
-    m.any_outgoing(ci.v0, [&](auto h) {
-      if (!m.face_handle(h).is_valid()) return false;
-      const auto v2 = m.to_vertex_handle(h), v3 = m.to_vertex_handle(m.next_halfedge_handle(h));
-      const bool guarded = !exempt_ || !(m.status(ci.v0).feature() && m.status(v2).feature() && m.status(v3).feature());
-      if (guarded) before = std::max(before, aspect(m.point(ci.v0), m.point(v2), m.point(v3)));
-      return false;
-    });
-    return after < before ? float(Base::LEGAL_COLLAPSE) : float(Base::ILLEGAL_COLLAPSE);
+    bool over = false;
+    for (const Corner& c : ring_) {
+      if (c.v2 == ci.v1 || c.v3 == ci.v1) continue;
+      if (exempt_ && f1 && c.features) continue;
+      after = std::max(after, aspect(ci.p1, c.p2, c.p3, c.d1));
+      if (!over && after > max_aspect_) {
+        over = true;
+        if (!before_known_) {
+          before_ = worst_before();
+          before_known_ = true;
+        }
+      }
+      if (over && !(after < before_)) return float(Base::ILLEGAL_COLLAPSE);
+    }
+    return float(Base::LEGAL_COLLAPSE);
   }
 
+  void postprocess_collapse(const CollapseInfo&) override { ring_v0_ = VertexHandle(); }
+
  private:
+  using VertexHandle = typename MeshT::VertexHandle;
+  struct Corner {
+    VertexHandle v2, v3;  // the triangle v0 v2 v3
+    OpenMesh::Vec3d p2, p3;
+    double d1;  // |p2 - p3|^2, the same for every candidate
+    bool features;  // v2 and v3 on the feature network
+  };
+
+  void load_ring(VertexHandle v0) {
+    auto& m = Base::mesh();
+    ring_.clear();
+    m.any_outgoing(v0, [&](auto h) {
+      if (!m.face_handle(h).is_valid()) return false;
+      const auto v2 = m.to_vertex_handle(h), v3 = m.to_vertex_handle(m.next_halfedge_handle(h));
+      const OpenMesh::Vec3d p2 = m.point(v2), p3 = m.point(v3);
+      ring_.push_back({v2, v3, p2, p3, (p2 - p3).sqrnorm(), m.status(v2).feature() && m.status(v3).feature()});
+      return false;
+    });
+    ring_v0_ = v0;
+    before_known_ = false;
+  }
+
+  double worst_before() {
+    auto& m = Base::mesh();
+    const bool f0 = m.status(ring_v0_).feature();
+    const OpenMesh::Vec3d p0 = m.point(ring_v0_);
+    double before = 0;
+    for (const Corner& c : ring_)
+      if (!(exempt_ && f0 && c.features)) before = std::max(before, aspect(p0, c.p2, c.p3, c.d1));
+    return before;
+  }
+
   // Longest edge over its height (OpenMesh's definition); infinite for a degenerate triangle.
-  static double aspect(const OpenMesh::Vec3d& a, const OpenMesh::Vec3d& b, const OpenMesh::Vec3d& c) {
-    const OpenMesh::Vec3d d0 = a - b, d1 = b - c, d2 = c - a;
-    const double l2 = std::max({d0.sqrnorm(), d1.sqrnorm(), d2.sqrnorm()});
+  // d1 = |b - c|^2.
+  static double aspect(const OpenMesh::Vec3d& a, const OpenMesh::Vec3d& b, const OpenMesh::Vec3d& c, double d1) {
+    const OpenMesh::Vec3d d0 = a - b, d2 = c - a;
+    const double l2 = std::max({d0.sqrnorm(), d1, d2.sqrnorm()});
     const double a2 = (d0 % d2).norm();
     return a2 > 0 ? l2 / a2 : DBL_MAX;
   }
+  std::vector<Corner> ring_;
+  VertexHandle ring_v0_;
+  double before_ = 0;
+  bool before_known_ = false;
   double max_aspect_ = 8.0;
   bool exempt_ = true;
 };
