@@ -1,6 +1,5 @@
 #include "fitting/closest_point.h"
 
-#include <CGAL/AABB_segment_primitive.h>
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
 #include <CGAL/AABB_triangle_primitive.h>
@@ -14,9 +13,7 @@ namespace {
 
 using K = CGAL::Simple_cartesian<double>;
 using Tri = K::Triangle_3;
-using Seg = K::Segment_3;
 using TriIt = std::vector<Tri>::const_iterator;
-using SegIt = std::vector<Seg>::const_iterator;
 using TriPrimitive = CGAL::AABB_triangle_primitive<K, TriIt>;
 
 // Supporting plane a x + b y + c z + d = 0 of a tree triangle, as CGAL computes it.
@@ -169,7 +166,6 @@ TriPlane plane_of(const Tri& t) {
 }
 
 using TriTree = CGAL::AABB_tree<FastTriTraits>;
-using SegTree = CGAL::AABB_tree<CGAL::AABB_traits<K, CGAL::AABB_segment_primitive<K, SegIt>>>;
 
 K::Point_3 cg(const Eigen::Vector3d& p) { return {p.x(), p.y(), p.z()}; }
 Eigen::Vector3d ei(const K::Point_3& p) { return {p.x(), p.y(), p.z()}; }
@@ -208,8 +204,7 @@ struct TriangleIndex::Impl {
   }
 };
 
-TriangleIndex::TriangleIndex(const Points& points, std::vector<std::array<int, 3>> triangles,
-                             bool eager_search_tree)
+TriangleIndex::TriangleIndex(const Points& points, std::vector<std::array<int, 3>> triangles)
     : impl_(std::make_unique<Impl>()), triangles_(std::move(triangles)) {
   for (size_t t = 0; t < triangles_.size(); ++t) {
     const auto& f = triangles_[t];
@@ -228,8 +223,7 @@ TriangleIndex::TriangleIndex(const Points& points, std::vector<std::array<int, 3
   traits.planes = impl_->planes.data();
   impl_->tree.emplace(traits);
   impl_->tree->rebuild(impl_->tris.begin(), impl_->tris.end());
-  // CGAL builds the same kd-tree lazily (thread-safely) on the first query without a hint.
-  if (!impl_->tris.empty() && eager_search_tree) impl_->tree->accelerate_distance_queries();
+  if (!impl_->tris.empty()) impl_->tree->accelerate_distance_queries();
 }
 TriangleIndex::~TriangleIndex() = default;
 bool TriangleIndex::empty() const { return impl_->tris.empty(); }
@@ -245,55 +239,6 @@ TriangleHit TriangleIndex::closest(const Eigen::Vector3d& q, const TriangleHint&
     return closest(q);
   TriIt hint_it = impl_->tris.begin() + impl_->tree_of[hint.triangle];
   auto [pt, it] = impl_->tree->closest_point_and_primitive(cg(q), std::make_pair(cg(hint.point), hint_it));
-  return impl_->hit(q, pt, it);
-}
-
-struct SegmentIndex::Impl {
-  std::vector<Seg> segs;
-  std::vector<int> id;
-  std::vector<int> tree_of;
-  SegTree tree;
-  SegmentHit hit(const Eigen::Vector3d& q, const K::Point_3& pt, SegIt it) const {
-    const Seg& seg = *it;
-    SegmentHit h;
-    h.segment = id[static_cast<size_t>(it - segs.begin())];
-    h.point = ei(pt);
-    Eigen::Vector3d a = ei(seg.source()), b = ei(seg.target());
-    double len2 = (b - a).squaredNorm();
-    h.t = len2 > 0 ? std::clamp((h.point - a).dot(b - a) / len2, 0.0, 1.0) : 0.0;
-    h.distance = (h.point - q).norm();
-    return h;
-  }
-};
-
-SegmentIndex::SegmentIndex(const Points& points, std::vector<std::pair<int, int>> segments,
-                           bool eager_search_tree)
-    : impl_(std::make_unique<Impl>()), segments_(std::move(segments)) {
-  for (size_t s = 0; s < segments_.size(); ++s) {
-    Seg seg(cg(points.row(segments_[s].first)), cg(points.row(segments_[s].second)));
-    if (seg.is_degenerate()) continue;
-    impl_->segs.push_back(seg);
-    impl_->id.push_back(static_cast<int>(s));
-  }
-  impl_->tree_of.assign(segments_.size(), -1);
-  for (size_t k = 0; k < impl_->id.size(); ++k) impl_->tree_of[impl_->id[k]] = static_cast<int>(k);
-  impl_->tree.rebuild(impl_->segs.begin(), impl_->segs.end());
-  if (!impl_->segs.empty() && eager_search_tree) impl_->tree.accelerate_distance_queries();
-}
-SegmentIndex::~SegmentIndex() = default;
-bool SegmentIndex::empty() const { return impl_->segs.empty(); }
-
-SegmentHit SegmentIndex::closest(const Eigen::Vector3d& q) const {
-  auto [pt, it] = impl_->tree.closest_point_and_primitive(cg(q));
-  return impl_->hit(q, pt, it);
-}
-
-SegmentHit SegmentIndex::closest(const Eigen::Vector3d& q, const SegmentHint& hint) const {
-  if (hint.segment < 0 || hint.segment >= static_cast<int>(impl_->tree_of.size()) ||
-      impl_->tree_of[hint.segment] < 0)
-    return closest(q);
-  SegIt hint_it = impl_->segs.begin() + impl_->tree_of[hint.segment];
-  auto [pt, it] = impl_->tree.closest_point_and_primitive(cg(q), std::make_pair(cg(hint.point), hint_it));
   return impl_->hit(q, pt, it);
 }
 

@@ -1,10 +1,10 @@
-// Closest-point queries on triangle soups and segment sets (CGAL AABB trees), returning which
-// primitive was hit and where on it, so a hit can be expressed in the primitive's vertices.
+// Closest-point answers on triangles and segments (which primitive was hit and where on it, so a
+// hit can be expressed in the primitive's vertices), and a triangle index on CGAL's AABB tree for
+// fixed triangle sets (registration). The fit's moving surfaces use closest_point_bvh.h.
 #pragma once
 #include <Eigen/Core>
 #include <array>
 #include <memory>
-#include <utility>
 #include <vector>
 
 #include "meshio/mesh.h"
@@ -34,10 +34,8 @@ struct SegmentHit {
 class TriangleIndex {
  public:
   // Triangles as vertex index triples into `points`; degenerate ones are left out of the tree.
-  // Queries without a hint start from a kd-tree over the triangles, built here when
-  // `eager_search_tree`, else on the first such query (never, when every query has a hint).
-  TriangleIndex(const Points& points, std::vector<std::array<int, 3>> triangles,
-                bool eager_search_tree = true);
+  // Queries without a hint start from a kd-tree over the triangles, built here.
+  TriangleIndex(const Points& points, std::vector<std::array<int, 3>> triangles);
   ~TriangleIndex();
   TriangleIndex(const TriangleIndex&) = delete;
   TriangleIndex& operator=(const TriangleIndex&) = delete;
@@ -50,31 +48,6 @@ class TriangleIndex {
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::vector<std::array<int, 3>> triangles_;
-};
-
-struct SegmentHint {
-  int segment = -1;
-  Eigen::Vector3d point;  // must lie on that segment (current positions)
-};
-
-class SegmentIndex {
- public:
-  // Like TriangleIndex: the kd-tree for queries without a hint is built here when
-  // `eager_search_tree`, else on the first such query.
-  SegmentIndex(const Points& points, std::vector<std::pair<int, int>> segments,
-               bool eager_search_tree = true);
-  ~SegmentIndex();
-  SegmentIndex(const SegmentIndex&) = delete;
-  SegmentIndex& operator=(const SegmentIndex&) = delete;
-  bool empty() const;
-  SegmentHit closest(const Eigen::Vector3d& q) const;
-  SegmentHit closest(const Eigen::Vector3d& q, const SegmentHint& hint) const;
-  const std::pair<int, int>& segment(int s) const { return segments_[s]; }
-
- private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
-  std::vector<std::pair<int, int>> segments_;
 };
 
 // Fan triangulation of every face (triangles and quads alike), as index triples.
