@@ -114,7 +114,7 @@ void add_compress_commands(CLI::App& app) {
       double verify_seconds = 0;
       options.verify = [&mesh, &verify_seconds, levels = a->o.levels](const Mesh& control) {
         const auto v0 = std::chrono::steady_clock::now();
-        const double h = surface_distance(mesh, decompress_to_level(control, levels)).hausdorff_relative();
+        const double h = decoded_distance(mesh, control, levels).hausdorff_relative();
         verify_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - v0).count();
         return h;
       };
@@ -138,7 +138,7 @@ void add_compress_commands(CLI::App& app) {
         params.quant_bits = bits;
         bytes = encode(r.control, params);
         auto decoded = decode(bytes, a->out);
-        d = surface_distance(mesh, decompress_to_level(decoded.mesh, r.levels));
+        d = decoded_distance(mesh, decoded.mesh, r.levels);
         if (meets(d)) break;
       }
       const double select_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();

@@ -90,7 +90,7 @@ TEST(Compress, FandiskWithinHundredControlVertices) {
   mm::CodecParams p;
   p.quant_bits = 10;
   const auto decoded = mm::decode(mm::encode(r.control, p), "fandisk");
-  const auto d = mm::surface_distance(m, mm::decompress_to_level(decoded.mesh, r.levels));
+  const auto d = mm::decoded_distance(m, decoded.mesh, r.levels);
   EXPECT_LE(d.hausdorff_relative(), 0.005);
   EXPECT_LE(d.rms_relative(), 0.001);
   EXPECT_FALSE(r.control.creases.empty());

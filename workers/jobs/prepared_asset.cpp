@@ -10,7 +10,6 @@
 #include <sstream>
 
 #include "quality/surface_distance.h"
-#include "subdivision/decompress.h"
 
 namespace mm::jobs {
 
@@ -211,7 +210,7 @@ PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
     // the configured tolerance by the same numbers `meshmark compress` and `compare` give.
     CompressOptions options = params.compression;
     options.verify = [&original, levels = options.levels](const Mesh& control) {
-      return surface_distance(original, decompress_to_level(control, levels)).hausdorff_relative();
+      return decoded_distance(original, control, levels).hausdorff_relative();
     };
     a.compression = compress(original, options, source);
   } catch (const InputError&) {

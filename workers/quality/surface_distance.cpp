@@ -11,6 +11,8 @@
 #include <random>
 #include <string>
 
+#include "subdivision/decompress.h"
+
 namespace mm {
 namespace {
 
@@ -120,6 +122,10 @@ OneSidedDistance one_sided_distance(const Mesh& from, const Mesh& to, const Samp
   d.mean = sum / static_cast<double>(points.size());
   d.rms = std::sqrt(sum_sq / static_cast<double>(points.size()));
   return d;
+}
+
+SurfaceDistance decoded_distance(const Mesh& part, const Mesh& control, int levels, const SamplingParams& params) {
+  return surface_distance(part, decompress_to_level(control, levels), params);
 }
 
 SurfaceDistance surface_distance(const Mesh& a, const Mesh& b, const SamplingParams& params) {

@@ -44,4 +44,10 @@ std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::
 OneSidedDistance one_sided_distance(const Mesh& from, const Mesh& to, const SamplingParams& params = {});
 SurfaceDistance surface_distance(const Mesh& a, const Mesh& b, const SamplingParams& params = {});
 
+// What a receiver of a control polyhedron sees against the part it stands for: `control`
+// subdivided `levels` times (subdivision/decompress.h), measured from `part` as above. The one
+// measurement behind compress's tolerance, its bit choice and protect jobs.
+SurfaceDistance decoded_distance(const Mesh& part, const Mesh& control, int levels,
+                                 const SamplingParams& params = {});
+
 }  // namespace mm
