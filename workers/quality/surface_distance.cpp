@@ -1,27 +1,16 @@
 #include "quality/surface_distance.h"
 
-#include <CGAL/AABB_traits.h>
-#include <CGAL/AABB_tree.h>
-#include <CGAL/AABB_triangle_primitive.h>
-#include <CGAL/Simple_cartesian.h>
-
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <string>
 
+#include "quality/triangle_distance_tree.h"
 #include "subdivision/decompress.h"
 
 namespace mm {
 namespace {
-
-using K = CGAL::Simple_cartesian<double>;
-using Triangle = K::Triangle_3;
-using Point = K::Point_3;
-using TriangleIt = std::vector<Triangle>::const_iterator;
-using Primitive = CGAL::AABB_triangle_primitive<K, TriangleIt>;
-using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Primitive>>;
 
 struct Tri {
   Eigen::Vector3d a, b, c;
@@ -99,20 +88,20 @@ std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::
 
 OneSidedDistance one_sided_distance(const Mesh& from, const Mesh& to, const SamplingParams& params) {
   const std::vector<Tri> target = triangles(to);
-  std::vector<Triangle> cgal_tris;
-  cgal_tris.reserve(target.size());
-  for (const Tri& t : target)
-    cgal_tris.emplace_back(Point(t.a.x(), t.a.y(), t.a.z()), Point(t.b.x(), t.b.y(), t.b.z()),
-                           Point(t.c.x(), t.c.y(), t.c.z()));
-  Tree tree(cgal_tris.begin(), cgal_tris.end());
-  tree.accelerate_distance_queries();
+  std::vector<std::array<Eigen::Vector3d, 3>> corners;
+  corners.reserve(target.size());
+  for (const Tri& t : target) corners.push_back({t.a, t.b, t.c});
+  const TriangleDistanceTree tree(corners);
 
   const auto points = sample_surface(from, params.samples, params.seed, params.include_vertices);
   if (points.empty()) throw InputError("quality", "no samples: give samples > 0 or include vertices");
   OneSidedDistance d;
   double sum = 0, sum_sq = 0;
+  // Consecutive samples lie on the same or neighbouring triangles: each query starts from the
+  // previous answer.
+  int hint = -1;
   for (const auto& p : points) {
-    const double sq = tree.squared_distance(Point(p.x(), p.y(), p.z()));
+    const double sq = tree.squared_distance(p, hint);
     const double dist = std::sqrt(sq);
     d.max = std::max(d.max, dist);
     sum += dist;

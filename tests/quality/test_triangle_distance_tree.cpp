@@ -1,0 +1,94 @@
+// TriangleDistanceTree must give CGAL's AABB tree numbers bit for bit (the quality reports and
+// compress's tolerance decisions were made with CGAL's): queries near, on and far from the
+// surfaces of a curved CAD part and of a subdivided control mesh, with and without hints.
+#include <gtest/gtest.h>
+
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
+#include <CGAL/AABB_triangle_primitive.h>
+#include <CGAL/Simple_cartesian.h>
+
+#include <Eigen/Geometry>
+#include <cstring>
+#include <random>
+
+#include "common/shared_meshes.h"
+#include "meshio/read_mesh.h"
+#include "quality/surface_distance.h"
+#include "quality/triangle_distance_tree.h"
+
+namespace {
+
+using K = CGAL::Simple_cartesian<double>;
+using TriangleIt = std::vector<K::Triangle_3>::const_iterator;
+using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, CGAL::AABB_triangle_primitive<K, TriangleIt>>>;
+
+std::vector<std::array<Eigen::Vector3d, 3>> corners(const mm::Mesh& m) {
+  std::vector<std::array<Eigen::Vector3d, 3>> out;
+  for (const auto& f : m.faces)
+    for (size_t k = 1; k + 1 < f.size(); ++k) {
+      std::array<Eigen::Vector3d, 3> t{m.points.row(f[0]).transpose(), m.points.row(f[k]).transpose(),
+                                       m.points.row(f[k + 1]).transpose()};
+      if ((t[1] - t[0]).cross(t[2] - t[0]).norm() > 0) out.push_back(t);
+    }
+  return out;
+}
+
+bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+// Queries: surface samples pushed off along random directions by 0 to 10 % of the diagonal
+// (most near the surface, where ties between neighbouring triangles happen), the vertices
+// themselves and points far outside.
+void expect_cgal_numbers(const mm::Mesh& mesh, const mm::Mesh& query_surface, int count) {
+  const auto tris = corners(mesh);
+  std::vector<K::Triangle_3> cgal;
+  for (const auto& t : tris)
+    cgal.emplace_back(K::Point_3(t[0].x(), t[0].y(), t[0].z()), K::Point_3(t[1].x(), t[1].y(), t[1].z()),
+                      K::Point_3(t[2].x(), t[2].y(), t[2].z()));
+  Tree reference(cgal.begin(), cgal.end());
+  reference.accelerate_distance_queries();
+  const mm::TriangleDistanceTree tree(tris);
+  const double diag = (mesh.points.colwise().maxCoeff() - mesh.points.colwise().minCoeff()).norm();
+  auto points = mm::sample_surface(query_surface, count, 7, true);
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (size_t k = 0; k < points.size(); k += 3) {
+    const double scale = (k % 9 == 0 ? 0.1 : k % 9 == 3 ? 0.001 : 0.0) * diag;
+    points[k] += scale * Eigen::Vector3d(u(rng), u(rng), u(rng));
+  }
+  for (int k = 0; k < 20; ++k) points.push_back(Eigen::Vector3d(u(rng), u(rng), u(rng)) * 3 * diag);
+  int hint = -1, mismatches = 0;
+  for (size_t k = 0; k < points.size(); ++k) {
+    const auto& p = points[k];
+    const double expected = reference.squared_distance(K::Point_3(p.x(), p.y(), p.z()));
+    // Hints: the previous answer, none, or an arbitrary triangle far away.
+    int h = k % 5 == 4 ? -1 : k % 5 == 3 ? static_cast<int>(k % tris.size()) : hint;
+    const double got = tree.squared_distance(p, h);
+    if (k % 5 < 3) hint = h;
+    if (!same_bits(got, expected) && ++mismatches <= 5)
+      ADD_FAILURE() << "query " << k << " (" << p.transpose() << "): " << got << " vs CGAL " << expected;
+  }
+  EXPECT_EQ(mismatches, 0) << "of " << points.size() << " queries";
+}
+
+TEST(TriangleDistanceTree, CgalNumbersOnAPart) {
+  MM_REQUIRE_SHARED_MESHES();
+  const mm::Mesh part = mm::read_mesh(mm::test::shared_mesh("fandisk.off"));
+  expect_cgal_numbers(part, part, 20000);
+}
+
+TEST(TriangleDistanceTree, CgalNumbersOnASubdividedSurface) {
+  MM_REQUIRE_SHARED_MESHES();
+  // A coarse control mesh's level-3 surface against the part and the other way round: the two
+  // directions of compress's dense check.
+  const mm::Mesh part = mm::read_mesh(mm::test::shared_mesh("fandisk.off"));
+  const mm::Mesh quads = mm::read_mesh(mm::test::shared_mesh("fandisk_quads.off"));
+  expect_cgal_numbers(quads, part, 20000);
+  expect_cgal_numbers(part, quads, 20000);
+}
+
+TEST(TriangleDistanceTree, RejectsNoTriangles) {
+  EXPECT_THROW(mm::TriangleDistanceTree({}), std::invalid_argument);
+}
+
+}  // namespace

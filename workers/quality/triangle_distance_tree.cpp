@@ -1,0 +1,236 @@
+#include "quality/triangle_distance_tree.h"
+
+#include <CGAL/Simple_cartesian.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <stdexcept>
+
+namespace mm {
+namespace {
+
+using K = CGAL::Simple_cartesian<double>;
+constexpr int kLeafSize = 4;
+
+struct Tri {
+  K::Triangle_3 t;
+  double lo[3], hi[3];
+  double n[3], d;  // unit normal and offset of the plane, when `prunable`
+  bool prunable;   // not a sliver: the plane distance is accurate enough to skip on
+};
+
+struct Node {
+  double lo[3], hi[3];
+  int first;  // leaf: first triangle (leaf order); inner: index of the right child (left is next)
+  int count;  // leaf: number of triangles; inner: 0
+};
+
+double box2(const double* lo, const double* hi, const double* p) {
+  double d2 = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double e = std::max(std::max(lo[k] - p[k], p[k] - hi[k]), 0.0);
+    d2 += e * e;
+  }
+  return d2;
+}
+
+}  // namespace
+
+struct TriangleDistanceTree::Impl {
+  std::vector<Tri> tris;     // leaf order
+  std::vector<Node> nodes;   // pre-order
+  double eps = 0;            // distance slack of the skip tests (see closest())
+
+  double area(const Eigen::AlignedBox3d& b) const {
+    if (b.isEmpty()) return 0;
+    const Eigen::Vector3d e = b.sizes();
+    return e.x() * e.y() + e.y() * e.z() + e.z() * e.x();
+  }
+
+  // Binned surface-area split along the centroids' longest axis (as closest_point_bvh.cpp), a
+  // median split when that finds nothing.
+  int build(std::vector<int>& order, int begin, int end, const std::vector<Eigen::Vector3d>& centroid,
+            const std::vector<Eigen::AlignedBox3d>& box, int depth) {
+    const int index = static_cast<int>(nodes.size());
+    nodes.push_back(Node{});
+    Eigen::AlignedBox3d all;
+    for (int k = begin; k < end; ++k) all.extend(box[static_cast<size_t>(order[static_cast<size_t>(k)])]);
+    for (int k = 0; k < 3; ++k) nodes[static_cast<size_t>(index)].lo[k] = all.min()[k], nodes[static_cast<size_t>(index)].hi[k] = all.max()[k];
+    if (end - begin <= kLeafSize) {
+      nodes[static_cast<size_t>(index)].first = begin;
+      nodes[static_cast<size_t>(index)].count = end - begin;
+      return index;
+    }
+    Eigen::Vector3d lo = centroid[static_cast<size_t>(order[static_cast<size_t>(begin)])], hi = lo;
+    for (int k = begin + 1; k < end; ++k) {
+      lo = lo.cwiseMin(centroid[static_cast<size_t>(order[static_cast<size_t>(k)])]);
+      hi = hi.cwiseMax(centroid[static_cast<size_t>(order[static_cast<size_t>(k)])]);
+    }
+    constexpr int kBins = 12;
+    int axis = 0;
+    (hi - lo).maxCoeff(&axis);
+    const double extent = hi[axis] - lo[axis];
+    auto bin_of = [&](int t) {
+      return std::min(kBins - 1, static_cast<int>(kBins * (centroid[static_cast<size_t>(t)][axis] - lo[axis]) / extent));
+    };
+    int best_bin = -1;
+    if (extent > 0) {
+      Eigen::AlignedBox3d bins[kBins];
+      int counts[kBins] = {};
+      for (int k = begin; k < end; ++k) {
+        const int t = order[static_cast<size_t>(k)];
+        ++counts[bin_of(t)];
+        bins[bin_of(t)].extend(box[static_cast<size_t>(t)]);
+      }
+      double right_area[kBins];
+      int right_count[kBins];
+      Eigen::AlignedBox3d acc;
+      int cnt = 0;
+      for (int b = kBins - 1; b > 0; --b) {
+        acc.extend(bins[b]);
+        cnt += counts[b];
+        right_area[b] = area(acc);
+        right_count[b] = cnt;
+      }
+      acc.setEmpty();
+      cnt = 0;
+      double best_cost = std::numeric_limits<double>::infinity();
+      for (int b = 0; b + 1 < kBins; ++b) {
+        acc.extend(bins[b]);
+        cnt += counts[b];
+        if (cnt == 0 || right_count[b + 1] == 0) continue;
+        const double cost = area(acc) * cnt + right_area[b + 1] * right_count[b + 1];
+        if (cost < best_cost) best_cost = cost, best_bin = b;
+      }
+    }
+    int mid = begin + (end - begin) / 2;
+    if (best_bin >= 0 && depth < 48) {
+      mid = static_cast<int>(std::partition(order.begin() + begin, order.begin() + end,
+                                            [&](int t) { return bin_of(t) <= best_bin; }) -
+                             order.begin());
+    } else {
+      std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end, [&](int x, int y) {
+        const double cx = centroid[static_cast<size_t>(x)][axis], cy = centroid[static_cast<size_t>(y)][axis];
+        return cx < cy || (cx == cy && x < y);
+      });
+    }
+    build(order, begin, mid, centroid, box, depth + 1);
+    const int right = build(order, mid, end, centroid, box, depth + 1);
+    nodes[static_cast<size_t>(index)].first = right;
+    nodes[static_cast<size_t>(index)].count = 0;
+    return index;
+  }
+};
+
+TriangleDistanceTree::TriangleDistanceTree(const std::vector<std::array<Eigen::Vector3d, 3>>& triangles)
+    : impl_(std::make_unique<Impl>()) {
+  const int n = static_cast<int>(triangles.size());
+  if (n == 0) throw std::invalid_argument("TriangleDistanceTree: no triangles");
+  std::vector<Eigen::Vector3d> centroid(static_cast<size_t>(n));
+  std::vector<Eigen::AlignedBox3d> box(static_cast<size_t>(n));
+  Eigen::AlignedBox3d all;
+  for (int t = 0; t < n; ++t) {
+    const auto& tr = triangles[static_cast<size_t>(t)];
+    centroid[static_cast<size_t>(t)] = (tr[0] + tr[1] + tr[2]) / 3;
+    for (const auto& v : tr) box[static_cast<size_t>(t)].extend(v);
+    all.extend(box[static_cast<size_t>(t)]);
+  }
+  std::vector<int> order(static_cast<size_t>(n));
+  std::iota(order.begin(), order.end(), 0);
+  impl_->nodes.reserve(static_cast<size_t>(2 * (n / kLeafSize + 1)));
+  impl_->build(order, 0, n, centroid, box, 0);
+  // Rounding slack: a projection CGAL computes may lie a few ulps outside its triangle's box or
+  // plane; the skip tests allow a distance far above that, so no candidate that could set the
+  // minimum is skipped (the answer is the minimum over all triangles, as CGAL's).
+  const double magnitude = std::max(all.max().cwiseAbs().maxCoeff(), all.min().cwiseAbs().maxCoeff());
+  impl_->eps = 1e-9 * std::max({(all.max() - all.min()).norm(), magnitude, std::numeric_limits<double>::min()});
+  impl_->tris.resize(static_cast<size_t>(n));
+  for (int k = 0; k < n; ++k) {
+    const auto& tr = triangles[static_cast<size_t>(order[static_cast<size_t>(k)])];
+    Tri& s = impl_->tris[static_cast<size_t>(k)];
+    s.t = K::Triangle_3(K::Point_3(tr[0].x(), tr[0].y(), tr[0].z()), K::Point_3(tr[1].x(), tr[1].y(), tr[1].z()),
+                        K::Point_3(tr[2].x(), tr[2].y(), tr[2].z()));
+    for (int a = 0; a < 3; ++a) {
+      s.lo[a] = std::min({tr[0][a], tr[1][a], tr[2][a]});
+      s.hi[a] = std::max({tr[0][a], tr[1][a], tr[2][a]});
+    }
+    const Eigen::Vector3d ab = tr[1] - tr[0], ac = tr[2] - tr[0], cr = ab.cross(ac);
+    const double n2 = cr.squaredNorm();
+    s.prunable = n2 > 0 && std::isfinite(n2) && n2 > 1e-8 * ab.squaredNorm() * ac.squaredNorm();
+    const Eigen::Vector3d nrm = s.prunable ? Eigen::Vector3d(cr / std::sqrt(n2)) : Eigen::Vector3d::Zero();
+    for (int a = 0; a < 3; ++a) s.n[a] = nrm[a];
+    s.d = nrm.dot(tr[0]);
+  }
+}
+
+TriangleDistanceTree::~TriangleDistanceTree() = default;
+
+double TriangleDistanceTree::squared_distance(const Eigen::Vector3d& q, int& hint) const {
+  const Impl& im = *impl_;
+  const double p[3] = {q.x(), q.y(), q.z()};
+  const K::Point_3 query(p[0], p[1], p[2]);
+  const K::Construct_projected_point_3 project;
+  const K::Compute_squared_distance_3 sqd;
+  double best2 = std::numeric_limits<double>::infinity();
+  int best = -1;
+  // The value of a triangle: the closer of CGAL's projection onto it and its first vertex (CGAL
+  // started from the nearest first vertex, its kd-tree's hint, and kept it unless a projection
+  // came strictly closer... or as close: both give the same number).
+  auto visit = [&](int t) {
+    const Tri& s = im.tris[static_cast<size_t>(t)];
+    const double v0 = sqd(query, s.t.vertex(0));
+    const double x = sqd(query, project(s.t, query));
+    const double v = std::min(v0, x);
+    if (v < best2) best2 = v, best = t;
+  };
+  // Skip bound: a triangle or box farther than sqrt(best2) + eps cannot hold a closer answer.
+  auto bound = [&] {
+    const double r = std::sqrt(best2) + im.eps;
+    return r * r;
+  };
+  if (hint >= 0 && hint < static_cast<int>(im.tris.size())) visit(hint);
+  double limit = bound();
+  struct Entry {
+    int node;
+    double d2;
+  };
+  Entry stack[128];
+  int top = 0;
+  stack[top++] = {0, box2(im.nodes[0].lo, im.nodes[0].hi, p)};
+  while (top > 0) {
+    const Entry e = stack[--top];
+    if (e.d2 > limit) continue;
+    const Node& nd = im.nodes[static_cast<size_t>(e.node)];
+    if (nd.count > 0) {
+      for (int j = nd.first; j < nd.first + nd.count; ++j) {
+        const Tri& s = im.tris[static_cast<size_t>(j)];
+        if (box2(s.lo, s.hi, p) > limit) continue;
+        if (s.prunable) {
+          const double dp = s.n[0] * p[0] + s.n[1] * p[1] + s.n[2] * p[2] - s.d;
+          if (dp * dp > limit) continue;
+        }
+        visit(j);
+        limit = bound();
+      }
+      continue;
+    }
+    const int l = e.node + 1, r = nd.first;
+    const double dl = box2(im.nodes[static_cast<size_t>(l)].lo, im.nodes[static_cast<size_t>(l)].hi, p);
+    const double dr = box2(im.nodes[static_cast<size_t>(r)].lo, im.nodes[static_cast<size_t>(r)].hi, p);
+    if (top + 2 > 128) throw std::logic_error("TriangleDistanceTree: too deep");
+    if (dl <= dr) {
+      if (dr <= limit) stack[top++] = {r, dr};
+      if (dl <= limit) stack[top++] = {l, dl};
+    } else {
+      if (dl <= limit) stack[top++] = {l, dl};
+      if (dr <= limit) stack[top++] = {r, dr};
+    }
+  }
+  hint = best;
+  return best2;
+}
+
+}  // namespace mm
