@@ -122,24 +122,43 @@ void add_compress_commands(CLI::App& app) {
       double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       CodecParams params;
       params.metadata["levels"] = std::to_string(r.levels);
-      // Bits: fewest whose decoded surface (quantised, subdivided, measured by the quality
-      // code) still meets the tolerance, from 8 up to the conservative rounding bound; the
-      // bound when the fit itself missed the tolerance or --bits is given.
-      const int bound = a->bits > 0 ? a->bits : auto_bits(r.control, a->o.tolerance);
-      const int lowest = a->bits > 0 || !r.tolerance_met ? bound : kMinQuantBits;
       std::vector<std::uint8_t> bytes;
       SurfaceDistance d;
+      const Mesh* chosen = &r.control;
       const auto meets = [&a](const SurfaceDistance& m) {
         return m.hausdorff_relative() <= a->o.tolerance &&
                (a->rms_tolerance <= 0 || m.rms_relative() <= a->rms_tolerance);
       };
       const auto t1 = std::chrono::steady_clock::now();
-      for (int bits = lowest; bits <= bound; ++bits) {
-        params.quant_bits = bits;
-        bytes = encode(r.control, params);
-        auto decoded = decode(bytes, a->out);
-        d = decoded_distance(mesh, decoded.mesh, r.levels);
-        if (meets(d)) break;
+      // Each polyhedron that met the tolerance (fewest vertices first; just the best one when
+      // the fit missed it): its bits are the fewest whose decoded surface (quantised,
+      // subdivided, measured by the quality code) still meets the tolerance, from 8 up to the
+      // conservative rounding bound (the bound alone when --bits is given or the fit missed);
+      // the smallest stream wins. A stream no smaller than the best so
+      // far ends a polyhedron's search unmeasured: more bits only add bytes.
+      std::vector<const Mesh*> polyhedra;
+      for (const auto& c : r.candidates) polyhedra.push_back(&c.control);
+      if (polyhedra.empty()) polyhedra.push_back(&r.control);
+      bool best_meets = false;
+      for (const Mesh* control : polyhedra) {
+        const int bound = a->bits > 0 ? a->bits : auto_bits(*control, a->o.tolerance);
+        const int lowest = a->bits > 0 || !r.tolerance_met ? bound : kMinQuantBits;
+        for (int b = lowest; b <= bound; ++b) {
+          CodecParams p = params;
+          p.quant_bits = b;
+          auto candidate = encode(*control, p);
+          if (best_meets && candidate.size() >= bytes.size()) break;
+          SurfaceDistance m = decoded_distance(mesh, decode(candidate, a->out).mesh, r.levels);
+          // Nothing met yet: keep the last tried, so that something is written (as before).
+          if (meets(m) || (!best_meets && b == bound && bytes.empty())) {
+            bytes = std::move(candidate);
+            d = m;
+            params.quant_bits = b;
+            chosen = control;
+            best_meets = meets(m);
+            if (best_meets) break;
+          }
+        }
       }
       const double select_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
       write_stream_file(a->out, bytes);
@@ -147,10 +166,11 @@ void add_compress_commands(CLI::App& app) {
                        {"output", a->out},
                        {"input_vertices", mesh.num_vertices()},
                        {"input_faces", mesh.num_faces()},
-                       {"control_vertices", r.control.num_vertices()},
-                       {"control_faces", r.control.num_faces()},
-                       {"creases", r.control.creases.size()},
-                       {"corners", r.control.corners.size()},
+                       {"control_vertices", chosen->num_vertices()},
+                       {"control_faces", chosen->num_faces()},
+                       {"creases", chosen->creases.size()},
+                       {"corners", chosen->corners.size()},
+                       {"candidates", polyhedra.size()},
                        {"levels", r.levels},
                        {"bits", params.quant_bits},
                        {"stream_bytes", bytes.size()},
@@ -169,9 +189,9 @@ void add_compress_commands(CLI::App& app) {
         std::cout << j.dump(2) << "\n";
         return;
       }
-      std::cout << a->out << ": " << bytes.size() << " bytes, " << r.control.num_vertices()
-                << " control vertices, " << r.control.num_faces() << " faces, "
-                << r.control.creases.size() << " creases, " << r.control.corners.size()
+      std::cout << a->out << ": " << bytes.size() << " bytes, " << chosen->num_vertices()
+                << " control vertices, " << chosen->num_faces() << " faces, "
+                << chosen->creases.size() << " creases, " << chosen->corners.size()
                 << " corners (from " << mesh.num_vertices() << " vertices)\n";
       std::cout << "level " << r.levels << " vs input: Hausdorff " << pct(d.hausdorff_relative());
       std::cout << ", RMS " << pct(d.rms_relative());

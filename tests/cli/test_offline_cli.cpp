@@ -8,6 +8,9 @@
 
 #include "cli_test_util.h"
 #include "codec/stream.h"
+#include <filesystem>
+#include "quality/surface_distance.h"
+#include "fitting/compress.h"
 #include "common/shared_meshes.h"
 #include "meshio/read_mesh.h"
 
@@ -384,4 +387,42 @@ TEST(CliCompress, FandiskTargetWithRmsTolerance) {
   EXPECT_LE(m["hausdorff"].get<double>(), 0.005);
   EXPECT_LE(m["rms"].get<double>(), 0.001);
   EXPECT_NEAR(m["rms"].get<double>(), j["rms"].get<double>(), 1e-12);
+}
+
+// The written stream is the smallest among the polyhedra that met the tolerance, each at the
+// fewest bits that keep it there (abc9: the fewest-vertices polyhedron needs 9 bits, one with a
+// few more vertices meets the tolerance at 8 and is smaller), and within the tolerance by
+// `compare`.
+TEST(CliCompress, WritesTheSmallestStreamOfTheCandidates) {
+  MM_REQUIRE_SHARED_MESHES();
+  Scratch s;
+  const std::string in = shared_mesh("abc9.stl"), out = s / "a.mmc";
+  const CliRun r = meshmark(s, {"compress", in, out, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json j = json::parse(r.out);
+  EXPECT_TRUE(j["tolerance_met"].get<bool>());
+  // The candidates as compress() gives them to the CLI, each at its fewest bits.
+  const mm::Mesh part = mm::read_mesh(in);
+  mm::CompressOptions o;
+  o.verify = [&](const mm::Mesh& c) { return mm::decoded_distance(part, c, o.levels).hausdorff_relative(); };
+  const auto fit = mm::compress(part, o);
+  ASSERT_EQ(j["candidates"].get<size_t>(), fit.candidates.size());
+  std::vector<size_t> smallest;
+  for (const auto& c : fit.candidates)
+    for (int bits = mm::kMinQuantBits; bits <= mm::kMaxQuantBits; ++bits) {
+      mm::CodecParams p;
+      p.quant_bits = bits;
+      p.metadata["levels"] = std::to_string(fit.levels);
+      const auto bytes = mm::encode(c.control, p);
+      if (mm::decoded_distance(part, mm::decode(bytes, "t").mesh, fit.levels).hausdorff_relative() <= o.tolerance) {
+        smallest.push_back(bytes.size());
+        break;
+      }
+    }
+  ASSERT_EQ(smallest.size(), fit.candidates.size());
+  EXPECT_LE(j["stream_bytes"].get<size_t>(), *std::min_element(smallest.begin(), smallest.end()));
+  EXPECT_EQ(std::filesystem::file_size(out), j["stream_bytes"].get<size_t>());
+  const CliRun c = meshmark(s, {"compare", in, out, "--json"});
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_LE(json::parse(c.out)["hausdorff"].get<double>(), 0.005);
 }

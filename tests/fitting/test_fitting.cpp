@@ -222,6 +222,42 @@ TEST(Compress, VerifyHasTheLastWord) {
   EXPECT_EQ(rejected.rounds, o.max_rounds);
 }
 
+// Every round that met the tolerance is offered, fewest vertices first, the chosen polyhedron
+// first; each met the caller's measurement; none when no round did.
+TEST(Compress, CandidatesAreTheRoundsThatMetTheTolerance) {
+  MM_REQUIRE_SHARED_MESHES();
+  auto m = mm::read_mesh(mm::test::shared_mesh("abc9.stl"));
+  mm::CompressOptions o;
+  std::vector<std::pair<int, double>> measured;  // vertex count, dense error
+  o.verify = [&](const mm::Mesh& control) {
+    const double h = mm::decoded_distance(m, control, o.levels).hausdorff_relative();
+    measured.emplace_back(control.num_vertices(), h);
+    return h;
+  };
+  const auto r = mm::compress(m, o);
+  ASSERT_TRUE(r.tolerance_met);
+  ASSERT_GE(r.candidates.size(), 1u);
+  EXPECT_TRUE(r.candidates[0].control.points == r.control.points);
+  EXPECT_EQ(r.candidates[0].control.faces, r.control.faces);
+  size_t met = 0;
+  for (const auto& [n, h] : measured) met += h <= o.tolerance;
+  EXPECT_EQ(r.candidates.size(), met);
+  for (size_t k = 0; k < r.candidates.size(); ++k) {
+    const auto& c = r.candidates[k];
+    if (k > 0) EXPECT_GE(c.control.num_vertices(), r.candidates[k - 1].control.num_vertices());
+    // In the part's units, numbered for the stream, and within the tolerance.
+    EXPECT_EQ(mm::traversal_vertex_order(c.control), [&] {
+      std::vector<int> id(static_cast<size_t>(c.control.num_vertices()));
+      std::iota(id.begin(), id.end(), 0);
+      return id;
+    }());
+    EXPECT_LE(mm::decoded_distance(m, c.control, r.levels).hausdorff_relative(), o.tolerance);
+    EXPECT_NEAR(c.stats.diagonal, r.stats.diagonal, 1e-9 * r.stats.diagonal);
+  }
+  o.verify = [](const mm::Mesh&) { return 1.0; };
+  EXPECT_TRUE(mm::compress(m, o).candidates.empty());
+}
+
 TEST(Compress, BadInputIsRejectedWithAReason) {
   mm::Mesh empty;
   EXPECT_THROW(mm::compress(empty, {}, "empty.off"), mm::InputError);

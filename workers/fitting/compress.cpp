@@ -99,6 +99,7 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
 
   bool have = false, best_fits = false;
   FitResult best;
+  std::vector<CompressCandidate> fitting;  // every round's polyhedron that met the tolerance, unit box
   // Vertex counts that failed (largest) and met the tolerance (smallest) so far: once a round
   // meets it, the rounds left bisect between the two, since the growth step may overshoot.
   int failed_n = 0, fit_n = 0;
@@ -126,6 +127,7 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
       fits = o.verify(candidate) <= o.tolerance;
     }
     const int n = control.mesh.num_vertices();
+    if (fits) fitting.push_back({result.control, result.stats});
     // Best: the fewest vertices among rounds that fit, else the smallest error.
     if (!have || (fits && (!best_fits || n < best.control.num_vertices())) ||
         (!fits && !best_fits && result.stats.hausdorff < best.stats.hausdorff)) {
@@ -154,14 +156,26 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
     co.target_vertices = std::min(o.max_vertices, static_cast<int>(std::ceil(co.target_vertices * grow)));
   }
 
-  out.control = renumbered_for_stream(best.control);
-  out.stats = best.stats;
   // Back to the part's units.
+  const auto in_part_units = [&](FitStats s) {
+    for (double* x : {&s.hausdorff, &s.rms, &s.mean, &s.diagonal}) *x /= out.normalization.scale;
+    return s;
+  };
+  out.control = renumbered_for_stream(best.control);
+  out.stats = in_part_units(best.stats);
   undo(out.normalization, out.control.points);
-  out.stats.hausdorff /= out.normalization.scale;
-  out.stats.rms /= out.normalization.scale;
-  out.stats.mean /= out.normalization.scale;
-  out.stats.diagonal /= out.normalization.scale;
+  // Fitting rounds by vertex count, the one kept as `control` first (the earliest of equal
+  // counts, as the loop keeps it).
+  std::stable_sort(fitting.begin(), fitting.end(), [](const CompressCandidate& a, const CompressCandidate& b) {
+    return a.control.num_vertices() < b.control.num_vertices();
+  });
+  if (best_fits) out.candidates.push_back({out.control, out.stats});
+  for (const CompressCandidate& c : fitting) {
+    if (c.control.points.rows() == best.control.points.rows() && c.control.points == best.control.points) continue;
+    CompressCandidate p{renumbered_for_stream(c.control), in_part_units(c.stats)};
+    undo(out.normalization, p.control.points);
+    out.candidates.push_back(std::move(p));
+  }
   return out;
 }
 

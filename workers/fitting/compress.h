@@ -26,6 +26,12 @@ struct CompressOptions {
   std::function<double(const Mesh& control)> verify;
 };
 
+// A control polyhedron that met the tolerance, in the part's units, numbered for the stream.
+struct CompressCandidate {
+  Mesh control;
+  FitStats stats;  // in the part's units
+};
+
 struct CompressResult {
   // In the input's units; creases and corners tagged; vertices numbered in the stream's
   // traversal order (mm::traversal_vertex_order), which the codec codes cheapest.
@@ -34,6 +40,12 @@ struct CompressResult {
   Normalization normalization;  // the unit-box transform the fit was done in
   FitStats stats;               // relative numbers: stats.x / stats.diagonal
   bool tolerance_met = false;
+  // Every round's control polyhedron that met the tolerance, fewest vertices first (`control` is
+  // the first). The fewest vertices need not give the smallest stream: a polyhedron with a few
+  // more may keep its surface within the tolerance on a coarser grid (abc9: 52 vertices need 9
+  // bits, 181 bytes; 56 need 8, 172 bytes), so a caller that quantises measures each and keeps
+  // the smallest stream. Empty when no round met the tolerance.
+  std::vector<CompressCandidate> candidates;
   int rounds = 0;
   int input_vertices = 0, sharp_edges = 0, corners = 0, patches = 0;
 };
