@@ -137,7 +137,7 @@ void add_compress_commands(CLI::App& app) {
       // the smallest stream wins. A stream no smaller than the best so
       // far ends a polyhedron's search unmeasured: more bits only add bytes.
       std::vector<const Mesh*> polyhedra;
-      for (const auto& c : r.candidates) polyhedra.push_back(&c.control);
+      for (const auto& fitted : r.candidates) polyhedra.push_back(&fitted.control);
       if (polyhedra.empty()) polyhedra.push_back(&r.control);
       bool best_meets = false;
       for (const Mesh* control : polyhedra) {

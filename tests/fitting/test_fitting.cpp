@@ -244,7 +244,9 @@ TEST(Compress, CandidatesAreTheRoundsThatMetTheTolerance) {
   EXPECT_EQ(r.candidates.size(), met);
   for (size_t k = 0; k < r.candidates.size(); ++k) {
     const auto& c = r.candidates[k];
-    if (k > 0) EXPECT_GE(c.control.num_vertices(), r.candidates[k - 1].control.num_vertices());
+    if (k > 0) {
+      EXPECT_GE(c.control.num_vertices(), r.candidates[k - 1].control.num_vertices());
+    }
     // In the part's units, numbered for the stream, and within the tolerance.
     EXPECT_EQ(mm::traversal_vertex_order(c.control), [&] {
       std::vector<int> id(static_cast<size_t>(c.control.num_vertices()));
