@@ -17,6 +17,10 @@ std::uint64_t cost_of(std::uint32_t p16) {
 
 }  // namespace
 
+std::uint32_t bit_cost_256(const BitModel& m, int b) {
+  return static_cast<std::uint32_t>(cost_of(b ? 65536 - m.p : m.p));
+}
+
 void adapt(BitModel& m, int b) {
   const int rate = m.n + 2 < kMaxRate ? m.n + 2 : kMaxRate;
   if (m.n < 0xFFFF) ++m.n;

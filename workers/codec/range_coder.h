@@ -67,4 +67,8 @@ class RangeDecoder {
 // Shared by both sides so the models evolve identically.
 void adapt(BitModel& m, int b);
 
+// Ideal cost in 1/256 bits of coding b with m, without adapting m (the encoder's rate-distortion
+// choices weigh candidate values with it; never affects how a given value is coded).
+std::uint32_t bit_cost_256(const BitModel& m, int b);
+
 }  // namespace mm::codec_detail

@@ -97,6 +97,13 @@ void validate_for_encoding(const Mesh& mesh, const CodecParams& params) {
   }
   for (int c : mesh.corners)
     if (c < 0 || c >= n) throw InputError(src, "corner index out of range");
+  if (!params.snap_cells.empty()) {
+    if (params.format_version != 3)
+      throw InputError(src, "snapping (snap_cells) needs format version 3");
+    if (params.snap_cells.size() != 3 * static_cast<std::size_t>(n))
+      throw InputError(src, "snap_cells has " + std::to_string(params.snap_cells.size()) + " entries for " +
+                                std::to_string(n) + " vertices (3 per vertex)");
+  }
   if (params.metadata.size() > kMaxMetadataEntries) throw InputError(src, "too many metadata entries");
   for (const auto& [k, v] : params.metadata) {
     if (!valid_key(k)) throw InputError(src, "metadata key is empty, too long or has characters other than [A-Za-z0-9_.-]");
@@ -306,7 +313,9 @@ std::vector<std::uint8_t> encode(const Mesh& mesh, const CodecParams& params) {
                                      ") is not an edge of the mesh");
     crease_bits[it - edges.begin()] = true;
   }
-  if (params.format_version == 3) return codec_detail::encode_v3(mesh, q, grid, params.metadata);
+  if (params.format_version == 3)
+    return codec_detail::encode_v3(mesh, q, grid, params.metadata, nullptr,
+                                   params.snap_cells.empty() ? nullptr : &params.snap_cells);
   std::vector<int> corners = mesh.corners;
   std::sort(corners.begin(), corners.end());
   corners.erase(std::unique(corners.begin(), corners.end()), corners.end());

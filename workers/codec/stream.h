@@ -28,6 +28,13 @@ struct CodecParams {
   // Small key-value strings (asset id, copy id...). Keys: 1..64 bytes of [A-Za-z0-9_.-];
   // values: up to 1024 bytes; at most 32 entries. Never put secrets here.
   std::map<std::string, std::string> metadata;
+  // Rate-distortion snapping, opt-in (empty: off, the default; version 3 only). Per coordinate
+  // (x, y, z of vertex 0, then of vertex 1, ...: 3 entries per vertex), how many grid cells it
+  // may move away from its nearest grid value when a value within that reach is cheaper to code
+  // (the prediction, a neighbour's value to copy, a smaller residual). Spends error the caller
+  // has to spare on bytes: nothing here looks at the surface, so the caller measures the decoded
+  // result. Never for watermarked polyhedra, whose small deliberate perturbations it would erase.
+  std::vector<std::uint8_t> snap_cells;
 };
 
 struct DecodedStream {

@@ -20,10 +20,11 @@ struct SectionBits {
 };
 
 // Encodes a mesh already validated by encode(); tries each coordinate prediction and keeps the
-// smallest stream (ties: the first).
+// smallest stream (ties: the first). With `snap` (per vertex, cells; CodecParams::snap_cells)
+// the grid values may move by up to that many cells where another value codes cheaper.
 std::vector<std::uint8_t> encode_v3(const Mesh& mesh, const Quantization& q, const GridPoints& grid,
                                     const std::map<std::string, std::string>& metadata,
-                                    SectionBits* bits = nullptr);
+                                    SectionBits* bits = nullptr, const std::vector<std::uint8_t>* snap = nullptr);
 
 // Decodes a stream whose magic, version (3), size limit and checksum were checked.
 DecodedStream decode_v3(const std::uint8_t* data, std::size_t size, const std::string& source);
