@@ -1,0 +1,78 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "quality/coordinate_slack.h"
+#include "subdivision/decompress.h"
+
+namespace {
+
+// A flat n x n quad grid in the plane z = 0, boundary creased (the subdivision keeps it flat).
+mm::Mesh flat_grid(int n) {
+  mm::Mesh m;
+  m.points.resize(n * n, 3);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) m.points.row(j * n + i) << i, j, 0;
+  for (int j = 0; j + 1 < n; ++j)
+    for (int i = 0; i + 1 < n; ++i) m.faces.push_back({j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i});
+  return m;
+}
+
+}  // namespace
+
+// Against its own surface, a flat grid may slide freely in its plane (no refined vertex depends
+// on x or y) and move across it by the whole tolerance.
+TEST(CoordinateSlack, FlatSurfaceSlidesFreelyInItsPlane) {
+  const mm::Mesh control = flat_grid(5);
+  const mm::Mesh part = mm::decompress_to_level(control, 2);
+  const auto slack = mm::coordinate_slack(part, control, 2, 0.01);
+  ASSERT_EQ(slack.size(), 3u * 25);
+  for (int v = 0; v < 25; ++v) {
+    EXPECT_GE(slack[3 * v], 1e29) << v;
+    EXPECT_GE(slack[3 * v + 1], 1e29) << v;
+    EXPECT_NEAR(slack[3 * v + 2], 0.01, 1e-9) << v;
+  }
+}
+
+// A part lifted by d leaves tolerance - d across the plane; one lifted beyond the tolerance
+// leaves nothing (never negative).
+TEST(CoordinateSlack, ErrorUsesUpTheSlack) {
+  const mm::Mesh control = flat_grid(4);
+  mm::Mesh part = mm::decompress_to_level(control, 2);
+  part.points.col(2).array() += 0.004;
+  auto slack = mm::coordinate_slack(part, control, 2, 0.01);
+  for (int v = 0; v < 16; ++v) EXPECT_NEAR(slack[3 * v + 2], 0.006, 1e-9) << v;
+  part.points.col(2).array() += 0.01;
+  slack = mm::coordinate_slack(part, control, 2, 0.01);
+  for (int v = 0; v < 16; ++v) EXPECT_EQ(slack[3 * v + 2], 0.0) << v;
+}
+
+// A local bump in the part is charged to the control vertices whose surface is near it: they
+// lose their slack, far ones keep it. A tilted grid: every axis then has a normal component,
+// which divides the slack by |n_x| + |n_y| + |n_z|.
+TEST(CoordinateSlack, LocalErrorIsLocalAndTiltDividesTheSlack) {
+  mm::Mesh control = flat_grid(9);
+  for (int v = 0; v < control.num_vertices(); ++v) control.points(v, 2) = 0.5 * control.points(v, 0);
+  mm::Mesh part = mm::decompress_to_level(control, 2);
+  // Lift the part's vertices near control vertex (1, 1) along the normal.
+  const Eigen::RowVector3d normal = Eigen::RowVector3d(-0.5, 0, 1).normalized();
+  for (int r = 0; r < part.num_vertices(); ++r) {
+    const double dx = part.points(r, 0) - 1, dy = part.points(r, 1) - 1;
+    if (dx * dx + dy * dy < 0.25) part.points.row(r) += 0.02 * normal;
+  }
+  const double tol = 0.05;
+  const auto slack = mm::coordinate_slack(part, control, 2, tol);
+  const double l1 = (0.5 + 1) / std::sqrt(1.25);
+  const int near = 1 * 9 + 1, far = 7 * 9 + 7;
+  EXPECT_LT(slack[3 * near + 2], (tol - 0.015) / l1);
+  EXPECT_NEAR(slack[3 * far + 2], tol / l1, 1e-9);
+  EXPECT_NEAR(slack[3 * far], tol / l1, 1e-9);
+  EXPECT_GE(slack[3 * far + 1], 1e29);  // the tilt is about y: y still slides freely
+}
+
+TEST(CoordinateSlack, PartWithoutAreaIsRefused) {
+  const mm::Mesh control = flat_grid(3);
+  mm::Mesh part = control;
+  part.points.setZero();
+  EXPECT_THROW(mm::coordinate_slack(part, control, 1, 0.01), mm::InputError);
+}
