@@ -426,3 +426,28 @@ TEST(CliCompress, WritesTheSmallestStreamOfTheCandidates) {
   ASSERT_EQ(c.code, 0) << c.err;
   EXPECT_LE(json::parse(c.out)["hausdorff"].get<double>(), 0.005);
 }
+
+// Rate-distortion snapping as `compress` uses it: on an ABC part whose 8-bit grid leaves part of
+// the tolerance unused, the snapped stream is never larger than the stream without snapping,
+// and `compare` (the quality code, on the written file) confirms the tolerance it reports.
+TEST(CliCompress, SnappingMeetsTheToleranceByCompareAndNeverGrows) {
+  MM_REQUIRE_SHARED_MESHES();
+  Scratch s;
+  const std::string in = shared_mesh("abc6.stl"), snapped = s / "snapped.mmc", plain = s / "plain.mmc";
+  const CliRun r = meshmark(s, {"compress", in, snapped, "--tolerance", "0.005", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const CliRun p = meshmark(s, {"compress", in, plain, "--tolerance", "0.005", "--json", "--no-snap"});
+  ASSERT_EQ(p.code, 0) << p.err;
+  const json j = json::parse(r.out), jp = json::parse(p.out);
+  EXPECT_TRUE(j["tolerance_met"].get<bool>());
+  EXPECT_FALSE(jp["snapped"].get<bool>());
+  EXPECT_EQ(j["unsnapped_bytes"].get<std::size_t>(), jp["stream_bytes"].get<std::size_t>());
+  EXPECT_LE(j["stream_bytes"].get<std::size_t>(), jp["stream_bytes"].get<std::size_t>());
+  EXPECT_EQ(j["stream_bytes"].get<std::size_t>() < jp["stream_bytes"].get<std::size_t>(), j["snapped"].get<bool>());
+  EXPECT_EQ(static_cast<std::size_t>(fs::file_size(snapped)), j["stream_bytes"].get<std::size_t>());
+  const CliRun c = meshmark(s, {"compare", in, snapped, "--json"});
+  ASSERT_EQ(c.code, 0) << c.err;
+  const json m = json::parse(c.out);
+  EXPECT_LE(m["hausdorff"].get<double>(), 0.005);
+  EXPECT_NEAR(m["hausdorff"].get<double>(), j["hausdorff"].get<double>(), 1e-12);
+}
