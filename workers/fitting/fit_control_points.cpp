@@ -64,8 +64,8 @@ TargetSamples sample_target(const Mesh& target, const std::vector<std::array<int
   return s;
 }
 
-// Edges of the refined mesh that act as creases: tagged creases plus open boundary edges.
-std::vector<std::pair<int, int>> crease_edges(const Mesh& m) {
+// Edges used by one face only (the open boundary), each as (min, max), sorted.
+std::vector<std::pair<int, int>> boundary_edges(const Mesh& m) {
   std::vector<std::pair<int, int>> edges;
   for (const auto& f : m.faces)
     for (size_t k = 0; k < f.size(); ++k) {
@@ -73,12 +73,24 @@ std::vector<std::pair<int, int>> crease_edges(const Mesh& m) {
       edges.emplace_back(std::min(a, b), std::max(a, b));
     }
   std::sort(edges.begin(), edges.end());
-  std::vector<std::pair<int, int>> out(m.creases.begin(), m.creases.end());
+  std::vector<std::pair<int, int>> out;
   for (size_t k = 0; k < edges.size();) {
     size_t j = k;
     while (j < edges.size() && edges[j] == edges[k]) ++j;
     if (j - k == 1) out.push_back(edges[k]);
     k = j;
+  }
+  return out;
+}
+
+// Edges of the refined mesh that act as creases: tagged creases plus open boundary edges.
+// `closed`: the caller knows the mesh has no boundary edge (subdivision of a control mesh
+// without one adds none), which spares sorting all of its edges.
+std::vector<std::pair<int, int>> crease_edges(const Mesh& m, bool closed = false) {
+  std::vector<std::pair<int, int>> out(m.creases.begin(), m.creases.end());
+  if (!closed) {
+    const auto boundary = boundary_edges(m);
+    out.insert(out.end(), boundary.begin(), boundary.end());
   }
   std::sort(out.begin(), out.end());
   out.erase(std::unique(out.begin(), out.end()), out.end());
@@ -183,20 +195,57 @@ class RefinedNormalEquations {
 // C = A B for row-major A and B whose patterns stay fixed while their values change (the
 // fit's G, S and S^T within one fit): C's pattern is found once, and each product accumulates
 // a row in a dense buffer and gathers it into that pattern, without the per-row index sorting
-// of a general sparse product.
+// of a general sparse product. Row i of C is only computed from column first_col[i] on (the
+// rest is left out of C): the solver reads one triangle of the symmetric S^T G S, and G S is
+// needed only where that triangle reads it. The entries computed are summed in the same order
+// as in the full product, so they are bit for bit its values.
 class FixedPatternProduct {
  public:
-  FixedPatternProduct(const SpMat& A, const SpMat& B) : acc_(static_cast<size_t>(B.cols()), 0.0) {
-    SpMat a = A, b = B;  // ones, so no product term cancels out of the pattern
-    std::fill(a.valuePtr(), a.valuePtr() + a.nonZeros(), 1.0);
-    std::fill(b.valuePtr(), b.valuePtr() + b.nonZeros(), 1.0);
-    C = a * b;
-    C.makeCompressed();
+  FixedPatternProduct(const SpMat& A, const SpMat& B, std::vector<int> first_col)
+      : acc_(static_cast<size_t>(B.cols()), 0.0), first_col_(std::move(first_col)) {
+    if (!A.isCompressed() || !B.isCompressed()) throw std::logic_error("FixedPatternProduct: uncompressed operand");
+    // The pattern alone (every product term counts, none can cancel out), row by row with a
+    // marker per column, each row's columns sorted.
+    std::vector<int> outer(static_cast<size_t>(A.outerSize()) + 1, 0), inner, mark(static_cast<size_t>(B.cols()), -1);
+    const int* b_outer = B.outerIndexPtr();
+    const int* b_inner = B.innerIndexPtr();
+    // Where each term of A starts in its row of B (the first column wanted), found once.
+    start_.resize(static_cast<size_t>(A.nonZeros()));
+    for (Eigen::Index i = 0; i < A.outerSize(); ++i) {
+      const size_t row_begin = inner.size();
+      const int from = first_col_[static_cast<size_t>(i)];
+      for (int k = A.outerIndexPtr()[i]; k < A.outerIndexPtr()[i + 1]; ++k) {
+        const int col = A.innerIndexPtr()[k];
+        const int* end = b_inner + b_outer[col + 1];
+        const int* y = std::lower_bound(b_inner + b_outer[col], end, from);
+        start_[static_cast<size_t>(k)] = static_cast<int>(y - b_inner);
+        for (; y != end; ++y)
+          if (mark[static_cast<size_t>(*y)] != static_cast<int>(i)) {
+            mark[static_cast<size_t>(*y)] = static_cast<int>(i);
+            inner.push_back(*y);
+          }
+      }
+      std::sort(inner.begin() + static_cast<std::ptrdiff_t>(row_begin), inner.end());
+      outer[static_cast<size_t>(i) + 1] = static_cast<int>(inner.size());
+    }
+    C.resize(A.rows(), B.cols());
+    C.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
+    std::copy(outer.begin(), outer.end(), C.outerIndexPtr());
+    std::copy(inner.begin(), inner.end(), C.innerIndexPtr());
+    std::fill(C.valuePtr(), C.valuePtr() + C.nonZeros(), 0.0);
   }
   const SpMat& operator()(const SpMat& A, const SpMat& B) {
+    const int* b_outer = B.outerIndexPtr();
+    const int* b_inner = B.innerIndexPtr();
+    const double* b_value = B.valuePtr();
+    const int* a_inner = A.innerIndexPtr();
+    const double* a_value = A.valuePtr();
     for (Eigen::Index i = 0; i < A.outerSize(); ++i) {
-      for (SpMat::InnerIterator x(A, i); x; ++x)
-        for (SpMat::InnerIterator y(B, x.col()); y; ++y) acc_[static_cast<size_t>(y.col())] += x.value() * y.value();
+      for (int k = A.outerIndexPtr()[i]; k < A.outerIndexPtr()[i + 1]; ++k) {
+        const double xv = a_value[k];
+        const int end = b_outer[a_inner[k] + 1];
+        for (int y = start_[static_cast<size_t>(k)]; y < end; ++y) acc_[static_cast<size_t>(b_inner[y])] += xv * b_value[y];
+      }
       for (int k = C.outerIndexPtr()[i]; k < C.outerIndexPtr()[i + 1]; ++k) {
         double& v = acc_[static_cast<size_t>(C.innerIndexPtr()[k])];
         C.valuePtr()[k] = v;
@@ -209,6 +258,8 @@ class FixedPatternProduct {
 
  private:
   std::vector<double> acc_;
+  std::vector<int> first_col_;
+  std::vector<int> start_;  // per term of A: index in B's arrays of the first term used
 };
 
 struct Correspondences {
@@ -368,7 +419,7 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
       tg.options.max_vertex_samples != o.max_vertex_samples)
     throw std::invalid_argument("fit target was prepared with other sampling options");
   const auto op = build_subdivision(control, o.levels);
-  const auto refined_creases = crease_edges(op.refined);
+  const auto refined_creases = crease_edges(op.refined, boundary_edges(control).empty());
   const auto refined_tris = triangle_list(op.refined);
   const TriangleBvh& target_tris = tg.tris;
   // The refined surface keeps its triangles while it moves: one tree per fit, refitted.
@@ -388,7 +439,16 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   const int n = control.num_vertices();
   const SpMat St = op.S.transpose();
   RefinedNormalEquations normal(static_cast<int>(op.S.rows()), refined_tris, refined_creases);
-  FixedPatternProduct GS(normal.G, op.S), StGS(St, GS.C);
+  // The solver reads the upper triangle of the row-major M = S^T G S (its arrays are handed
+  // over as the column-major lower triangle, below): row i from column i on, which needs row r
+  // of G S only from the first control vertex in S's row r on.
+  std::vector<int> diagonal_on(static_cast<size_t>(n)), support_on(static_cast<size_t>(op.S.rows()));
+  for (int i = 0; i < n; ++i) diagonal_on[static_cast<size_t>(i)] = i;
+  for (Eigen::Index r = 0; r < op.S.rows(); ++r)
+    support_on[static_cast<size_t>(r)] = op.S.outerIndexPtr()[r] < op.S.outerIndexPtr()[r + 1]
+                                             ? op.S.innerIndexPtr()[op.S.outerIndexPtr()[r]]
+                                             : n;
+  FixedPatternProduct GS(normal.G, op.S, std::move(support_on)), StGS(St, GS.C, std::move(diagonal_on));
   Eigen::MatrixXd X = control.points;
   for (int it = 0; it < o.iterations; ++it) {
     Points R = op.S * X;
@@ -407,7 +467,8 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
     M += (1e-6 * scale) * I;
     M.makeCompressed();
     Eigen::MatrixXd rhs = St * normal.Y + (1e-6 * scale) * X;
-    // M is symmetric: its row-major arrays read as column-major are M again (no conversion).
+    // M's row-major arrays read as column-major are its transpose, whose lower triangle (all
+    // the solver reads) is M's upper triangle, all that was computed of S^T G S.
     const Eigen::Map<const Eigen::SparseMatrix<double>> Mc(n, n, M.nonZeros(), M.outerIndexPtr(),
                                                            M.innerIndexPtr(), M.valuePtr());
     Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(Mc);
