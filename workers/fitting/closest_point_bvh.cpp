@@ -162,7 +162,10 @@ class Tree {
     for (int t = 0; t < n; ++t)
       for (int j = 0; j < N; ++j)
         box[static_cast<size_t>(t)].extend(points.row(prims_[static_cast<size_t>(t)][static_cast<size_t>(j)]).transpose().eval());
+    bin_.resize(static_cast<size_t>(n));
     build(order, 0, n, centroid, box, 0);
+    bin_.clear();
+    bin_.shrink_to_fit();
     slots_.resize(static_cast<size_t>(n));
     for (int k = 0; k < n; ++k) {
       slots_[static_cast<size_t>(k)].id = order[static_cast<size_t>(k)];
@@ -320,6 +323,7 @@ class Tree {
       for (int k = begin; k < end; ++k) {
         const int t = order[static_cast<size_t>(k)];
         const int b = std::min(kBins - 1, static_cast<int>(kBins * (centroid[static_cast<size_t>(t)][axis] - lo[axis]) / extent));
+        bin_[static_cast<size_t>(t)] = b;  // for the partition below
         ++counts[b];
         bins[b].extend(box[static_cast<size_t>(t)]);
       }
@@ -345,9 +349,8 @@ class Tree {
     }
     int mid = begin + (end - begin) / 2;
     if (best_bin >= 0 && depth < 48) {
-      const auto split = std::partition(order.begin() + begin, order.begin() + end, [&](int t) {
-        return std::min(kBins - 1, static_cast<int>(kBins * (centroid[static_cast<size_t>(t)][axis] - lo[axis]) / extent)) <= best_bin;
-      });
+      const auto split = std::partition(order.begin() + begin, order.begin() + end,
+                                        [&](int t) { return bin_[static_cast<size_t>(t)] <= best_bin; });
       mid = static_cast<int>(split - order.begin());
     } else {
       std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end, [&](int x, int y) {
@@ -363,6 +366,7 @@ class Tree {
   }
 
   std::vector<Prim> prims_;
+  std::vector<int> bin_;      // while building: each primitive's bin in the current split
   std::vector<Node> nodes_;   // pre-order: children after their parent
   std::vector<ChildBoxes> child_boxes_;  // per inner node: its children's boxes, for the search
   std::vector<Slot> slots_;   // primitives in leaf order

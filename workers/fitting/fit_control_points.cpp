@@ -134,18 +134,37 @@ class RefinedNormalEquations {
  public:
   RefinedNormalEquations(int refined_vertices, const std::vector<std::array<int, 3>>& tris,
                          const std::vector<std::pair<int, int>>& segments) {
-    std::vector<Trip> t;
-    t.reserve(static_cast<size_t>(refined_vertices) + 6 * tris.size() + 2 * segments.size());
-    for (int v = 0; v < refined_vertices; ++v) t.emplace_back(v, v, 0.0);
-    auto edge = [&](int a, int b) {
-      t.emplace_back(a, b, 0.0);
-      t.emplace_back(b, a, 0.0);
-    };
-    for (const auto& f : tris) edge(f[0], f[1]), edge(f[1], f[2]), edge(f[2], f[0]);
-    for (auto [a, b] : segments) edge(a, b);
+    // The pattern: per row the vertex itself and its neighbours along triangle sides and crease
+    // segments, sorted, each once (the pattern setFromTriplets gave, without its two passes).
+    const size_t n = static_cast<size_t>(refined_vertices);
+    std::vector<int> start(n + 1, 0);
+    for (size_t v = 0; v < n; ++v) start[v + 1] = 1;
+    for (const auto& f : tris)
+      for (int v : f) start[static_cast<size_t>(v) + 1] += 2;
+    for (auto [a, b] : segments) ++start[static_cast<size_t>(a) + 1], ++start[static_cast<size_t>(b) + 1];
+    for (size_t v = 0; v < n; ++v) start[v + 1] += start[v];
+    std::vector<int> cols(static_cast<size_t>(start[n])), fill(start.begin(), start.end() - 1);
+    auto put = [&](int a, int b) { cols[static_cast<size_t>(fill[static_cast<size_t>(a)]++)] = b; };
+    for (size_t v = 0; v < n; ++v) put(static_cast<int>(v), static_cast<int>(v));
+    for (const auto& f : tris) put(f[0], f[1]), put(f[1], f[0]), put(f[1], f[2]), put(f[2], f[1]), put(f[2], f[0]), put(f[0], f[2]);
+    for (auto [a, b] : segments) put(a, b), put(b, a);
+    std::vector<int> outer(n + 1, 0);
+    size_t nnz = 0;
+    for (size_t v = 0; v < n; ++v) {
+      const auto begin = cols.begin() + start[v], end = cols.begin() + start[v + 1];
+      std::sort(begin, end);
+      const auto last = std::unique(begin, end);
+      const size_t kept = static_cast<size_t>(last - begin);
+      // Compacted in place: the row moves down to where the previous row ended (never past it).
+      if (nnz != static_cast<size_t>(start[v])) std::copy(begin, last, cols.begin() + static_cast<std::ptrdiff_t>(nnz));
+      nnz += kept;
+      outer[v + 1] = static_cast<int>(nnz);
+    }
     G.resize(refined_vertices, refined_vertices);
-    G.setFromTriplets(t.begin(), t.end());  // duplicates summed: zeros, structurally kept
-    G.makeCompressed();
+    G.resizeNonZeros(static_cast<Eigen::Index>(nnz));
+    std::copy(outer.begin(), outer.end(), G.outerIndexPtr());
+    std::copy(cols.begin(), cols.begin() + static_cast<std::ptrdiff_t>(nnz), G.innerIndexPtr());
+    std::fill(G.valuePtr(), G.valuePtr() + G.nonZeros(), 0.0);
     Y.setZero(refined_vertices, 3);
     // Where each term pair lands in G, found once instead of once per correspondence.
     tri_slots.resize(tris.size());

@@ -94,6 +94,7 @@ struct TriangleDistanceTree::Impl {
   std::vector<ChildBoxes> child_boxes;  // per node (used for inner nodes)
   double root_lo[3], root_hi[3];
   double eps = 0;            // distance slack of the skip tests (see closest())
+  std::vector<int> bin;      // while building: each triangle's bin in the current split
 
   // Boxes bottom-up (children come after their parent in pre-order); returns node's box.
   Eigen::AlignedBox3d fill_boxes(int index, const std::vector<Eigen::AlignedBox3d>& box, const std::vector<int>& order) {
@@ -147,8 +148,10 @@ struct TriangleDistanceTree::Impl {
       int counts[kBins] = {};
       for (int k = begin; k < end; ++k) {
         const int t = order[static_cast<size_t>(k)];
-        ++counts[bin_of(t)];
-        bins[bin_of(t)].extend(box[static_cast<size_t>(t)]);
+        const int b = bin_of(t);
+        bin[static_cast<size_t>(t)] = b;  // for the partition below
+        ++counts[b];
+        bins[b].extend(box[static_cast<size_t>(t)]);
       }
       double right_area[kBins];
       int right_count[kBins];
@@ -174,7 +177,7 @@ struct TriangleDistanceTree::Impl {
     int mid = begin + (end - begin) / 2;
     if (best_bin >= 0 && depth < 48) {
       mid = static_cast<int>(std::partition(order.begin() + begin, order.begin() + end,
-                                            [&](int t) { return bin_of(t) <= best_bin; }) -
+                                            [&](int t) { return bin[static_cast<size_t>(t)] <= best_bin; }) -
                              order.begin());
     } else {
       std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end, [&](int x, int y) {
@@ -206,7 +209,9 @@ TriangleDistanceTree::TriangleDistanceTree(const std::vector<std::array<Eigen::V
   std::vector<int> order(static_cast<size_t>(n));
   std::iota(order.begin(), order.end(), 0);
   impl_->nodes.reserve(static_cast<size_t>(2 * (n / kLeafSize + 1)));
+  impl_->bin.resize(static_cast<size_t>(n));
   impl_->build(order, 0, n, centroid, box, 0);
+  impl_->bin = {};
   impl_->child_boxes.resize(impl_->nodes.size());
   const Eigen::AlignedBox3d root = impl_->fill_boxes(0, box, order);
   for (int k = 0; k < 3; ++k) impl_->root_lo[k] = root.min()[k], impl_->root_hi[k] = root.max()[k];
