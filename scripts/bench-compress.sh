@@ -67,8 +67,8 @@ with open(dst, 'w') as o:
 PY
 }
 
-printf '%-14s %7s %8s %7s %9s %9s %7s %7s | %5s %9s %9s | %7s\n' mesh in_vert ctrl_v bytes hausdorff rms fit_s check_s \
-  qp draco_B draco_H ratio
+printf '%-14s %7s %8s %7s %9s %9s %7s %7s %7s | %5s %9s %9s | %7s\n' mesh in_vert ctrl_v bytes hausdorff rms fit_s check_s \
+  bits_s qp draco_B draco_H ratio
 ratios=()
 for name in $LIST; do
   in="$MESHES/$name"
@@ -79,6 +79,8 @@ for name in $LIST; do
   bytes=$(stat -c %s "$mmc")
   # fit_s: compress() without its dense round checks (check_s), the part the speed target is about.
   check=$(jq -r '.verify_seconds' <<<"$summary")
+  # bits_s: the bit search and snapping after the fit (each candidate measured densely).
+  bits_s=$(jq -r '.bits_seconds' <<<"$summary")
   secs=$(jq -r "(.seconds - .verify_seconds)" <<<"$summary")
   ctrl=$(jq -r '.control_vertices' <<<"$summary")
   nin=$(jq -r '.input_vertices' <<<"$summary")
@@ -108,8 +110,8 @@ for name in $LIST; do
   rms_pct=$(python3 -c "print('%.4f%%' % (100 * $rms))")
   draco_pct=-
   [ "$best_h" = - ] || draco_pct=$(python3 -c "print('%.4f%%' % (100 * $best_h))")
-  printf '%-14s %7d %8d %7d %9s %9s %7.2f %7.2f | %5s %9s %9s | %7s\n' "$base" "$nin" "$ctrl" "$bytes" \
-    "$h_pct" "$rms_pct" "$secs" "$check" "$best_qp" "$best_bytes" "$draco_pct" "$ratio"
+  printf '%-14s %7d %8d %7d %9s %9s %7.2f %7.2f %7.2f | %5s %9s %9s | %7s\n' "$base" "$nin" "$ctrl" "$bytes" \
+    "$h_pct" "$rms_pct" "$secs" "$check" "$bits_s" "$best_qp" "$best_bytes" "$draco_pct" "$ratio"
 done
 if [ ${#ratios[@]} -gt 0 ]; then
   python3 -c "import statistics,sys; r=[float(x) for x in sys.argv[1:]]; print('median size ratio Draco/meshmark at equal Hausdorff: %.2f over %d meshes (target >= 5)' % (statistics.median(r), len(r)))" "${ratios[@]}"
