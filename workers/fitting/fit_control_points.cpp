@@ -281,6 +281,33 @@ class FixedPatternProduct {
   std::vector<int> start_;  // per term of A: index in B's arrays of the first term used
 };
 
+// A * B for a row-major sparse A and a dense B of three columns (positions), all three columns
+// in one pass over A, where Eigen's product walks A once per column: the same sums in the same
+// order from the same zero, so the same numbers.
+template <class Dense>
+Points times3(const SpMat& A, const Dense& B) {
+  if (B.cols() != 3 || B.rows() != A.cols()) throw std::logic_error("times3: shapes do not match");
+  Points out(A.rows(), 3);
+  const int* outer = A.outerIndexPtr();
+  const int* inner = A.innerIndexPtr();
+  const double* value = A.valuePtr();
+  for (Eigen::Index i = 0; i < A.rows(); ++i) {
+    double x = 0, y = 0, z = 0;
+    const int end = A.isCompressed() ? outer[i + 1] : outer[i] + A.innerNonZeroPtr()[i];
+    for (int k = outer[i]; k < end; ++k) {
+      const double v = value[k];
+      const Eigen::Index c = inner[k];
+      x += v * B(c, 0);
+      y += v * B(c, 1);
+      z += v * B(c, 2);
+    }
+    out(i, 0) = 0.0 + x;  // Eigen adds the row's sum to a zeroed result
+    out(i, 1) = 0.0 + y;
+    out(i, 2) = 0.0 + z;
+  }
+  return out;
+}
+
 struct Correspondences {
   RefinedNormalEquations* normal = nullptr;  // accumulated when given (not for measurements)
   double weight_sum = 0;
@@ -442,8 +469,9 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   const auto refined_tris = triangle_list(op.refined);
   const TriangleBvh& target_tris = tg.tris;
   // The refined surface keeps its triangles while it moves: one tree per fit, refitted.
-  TriangleBvh surf(op.S * control.points, refined_tris);
-  SegmentBvh crease(op.S * control.points, refined_creases);
+  const Points R0 = times3(op.S, control.points);
+  TriangleBvh surf(R0, refined_tris);
+  SegmentBvh crease(R0, refined_creases);
   const SegmentBvh& target_creases = tg.creases;
   const TargetSamples& samples = tg.samples;
   const TargetSamples& iteration_samples = tg.iteration_samples;
@@ -470,7 +498,7 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   FixedPatternProduct GS(normal.G, op.S, std::move(support_on)), StGS(St, GS.C, std::move(diagonal_on));
   Eigen::MatrixXd X = control.points;
   for (int it = 0; it < o.iterations; ++it) {
-    Points R = op.S * X;
+    Points R = times3(op.S, X);
     if (it > 0) {
       surf.refit(R);
       crease.refit(R);
@@ -485,7 +513,7 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
     I.setIdentity();
     M += (1e-6 * scale) * I;
     M.makeCompressed();
-    Eigen::MatrixXd rhs = St * normal.Y + (1e-6 * scale) * X;
+    Eigen::MatrixXd rhs = times3(St, normal.Y) + (1e-6 * scale) * X;
     // M's row-major arrays read as column-major are its transpose, whose lower triangle (all
     // the solver reads) is M's upper triangle, all that was computed of S^T G S.
     const Eigen::Map<const Eigen::SparseMatrix<double>> Mc(n, n, M.nonZeros(), M.outerIndexPtr(),
@@ -500,7 +528,7 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   FitResult out;
   out.control = control;
   out.control.points = X;
-  Points R = op.S * X;
+  Points R = times3(op.S, X);
   // The last iteration's answers start the final queries. Target vertices left out of the
   // strided subset get none: a neighbour in index order may lie far away on the part, and a far
   // hint costs more than the kd-tree's.
