@@ -16,7 +16,7 @@
 #include "codec/stream.h"
 #include "fitting/compress.h"
 #include "meshio/read_mesh.h"
-#include "quality/coordinate_slack.h"
+#include "quality/smallest_stream.h"
 #include "quality/surface_distance.h"
 #include "render/render_mesh.h"
 #include "subdivision/decompress.h"
@@ -49,92 +49,6 @@ Mesh load_surface(const std::string& path, int level) {
   if (!ends_with(path, ".mmc")) return read_mesh(path);
   auto s = decode_file(path);
   return decompress_to_level(s.mesh, level >= 0 ? level : stream_levels(s, 3));
-}
-
-// Fewest bits whose worst rounding error (half a grid step on each axis) stays below a fifth of
-// the tolerance; the grid spans the control mesh's longest side.
-int auto_bits(const Mesh& control, double tolerance) {
-  Eigen::RowVector3d lo = control.points.colwise().minCoeff(), hi = control.points.colwise().maxCoeff();
-  const double side = (hi - lo).maxCoeff(), diagonal = (hi - lo).norm();
-  if (!(side > 0)) return 12;
-  for (int bits = kMinQuantBits; bits < kMaxQuantBits; ++bits) {
-    const double step = quantization_for(control.points, bits).step;  // the grid encode() uses
-    if (0.5 * step * std::sqrt(3.0) <= 0.2 * tolerance * diagonal) return bits;
-  }
-  return kMaxQuantBits;
-}
-
-// Rate-distortion snapping (CodecParams::snap_cells) at one grid: spends the tolerance the
-// decoded surface leaves unused on bytes. Allowances come from the plain stream's per-coordinate
-// slack (quality/coordinate_slack.h) times a scale (kSnapScales): the slack is a first-order bound that
-// assumes every neighbour moves the worst way at once, which the encoder's moves rarely do (at
-// scale 2 the 8-bit grids of most bench parts barely move; at 4 about half of the streams meet
-// the tolerance unrepaired). A candidate that misses the tolerance is repaired, not discarded:
-// its moved coordinates whose slack on the snapped surface is (nearly) gone go back to their
-// nearest values, the rest stay, so the encoder's other choices are kept (re-snapping with
-// those coordinates frozen instead lets the greedy coder move others and missed again: abc8
-// 0.598 -> 0.531 -> 0.535 -> 0.590 %). The repair's slack uses the dense measurement's own part
-// samples (the default SamplingParams), so a violation the measurement saw is seen; with a
-// quarter of them bracket-3's violation was missed. The decoded candidate is measured like the
-// plain one (decoded_distance); returns the smallest that meets the tolerances and is smaller
-// than `smaller_than`, or no bytes.
-struct SnapCandidate {
-  std::vector<std::uint8_t> bytes;
-  SurfaceDistance distance;
-};
-// Scales tried, each at B and B + 1. Measured on the bench parts (bytes with 4 alone -> with 8
-// alone -> with 2 alone): abc5 456 / 445 / 441, abc8 564 / 574 / 583, bracket-3 508 / 520 / 521,
-// rocker 1283 / 1280 / 1353, blade 1660 / 1960 / 1755, abc9 171 / 170 / 172, abc6 207 / 211 /
-// 219; no scale is best everywhere, 4 and 2 together take the best but for 1-3 bytes.
-constexpr double kSnapScales[] = {4, 2};
-constexpr int kSnapRepairs = 2;
-constexpr std::uint8_t kMaxSnapCells = 8;
-
-template <class Meets>
-SnapCandidate snap_search(const Mesh& part, const Mesh& control, int levels, CodecParams params, double tolerance,
-                          std::size_t smaller_than, const Meets& meets, const std::string& name) {
-  // The slack is a guide (the measurement decides), so a quarter of the dense samples will do.
-  SamplingParams guide;
-  guide.samples = 50000;
-  const DecodedStream plain = decode(encode(control, params), name);
-  const double step = plain.quantization.step;
-  const std::vector<double> slack = coordinate_slack(part, plain.mesh, levels, tolerance, guide);
-  SnapCandidate best;
-  for (double scale : kSnapScales) {
-    CodecParams snapping = params;
-    snapping.snap_cells.resize(slack.size());
-    for (std::size_t i = 0; i < slack.size(); ++i)
-      snapping.snap_cells[i] = static_cast<std::uint8_t>(
-          std::clamp(std::floor(scale * slack[i] / step), 0.0, static_cast<double>(kMaxSnapCells)));
-    std::vector<std::uint8_t> bytes = encode(control, snapping);
-    for (int repair = 0; bytes.size() < smaller_than; ++repair) {
-      DecodedStream snapped = decode(bytes, name);
-      const SurfaceDistance d = decoded_distance(part, snapped.mesh, levels);
-      if (meets(d)) {
-        smaller_than = bytes.size();
-        best = {std::move(bytes), d};
-        break;
-      }
-      if (repair == kSnapRepairs) break;
-      // The codec keeps the vertex order, so the plain and snapped grids line up row by row.
-      // The second repair also takes back moves with under a quarter cell of slack left.
-      const std::vector<double> left = coordinate_slack(part, snapped.mesh, levels, tolerance);
-      int reverted = 0;
-      for (std::size_t i = 0; i < left.size(); ++i) {
-        const int v = static_cast<int>(i / 3), axis = static_cast<int>(i % 3);
-        if (left[i] <= 0.25 * repair * step && snapped.grid(v, axis) != plain.grid(v, axis)) {
-          snapped.grid(v, axis) = plain.grid(v, axis);
-          ++reverted;
-        }
-      }
-      if (reverted == 0) break;
-      // Extreme values never move, so the repaired positions keep the grid; encoded without
-      // snapping they are coded exactly.
-      snapped.mesh.points = dequantize(snapped.grid, snapped.quantization);
-      bytes = encode(snapped.mesh, params);
-    }
-  }
-  return best;
 }
 
 char fmt_buf[64];
@@ -198,65 +112,22 @@ void add_compress_commands(CLI::App& app) {
       };
       CompressResult r = compress(mesh, options, a->in);
       double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      CodecParams params;
-      params.metadata["levels"] = std::to_string(r.levels);
-      std::vector<std::uint8_t> bytes;
-      SurfaceDistance d;
-      const Mesh* chosen = &r.control;
-      const auto meets = [&a](const SurfaceDistance& m) {
-        return m.hausdorff_relative() <= a->o.tolerance &&
-               (a->rms_tolerance <= 0 || m.rms_relative() <= a->rms_tolerance);
-      };
       const auto t1 = std::chrono::steady_clock::now();
-      // Each polyhedron that met the tolerance (fewest vertices first; just the best one when
-      // the fit missed it): its bits are the fewest whose decoded surface (quantised,
-      // subdivided, measured by the quality code) still meets the tolerance, from 8 up to the
-      // conservative rounding bound (the bound alone when --bits is given or the fit missed);
-      // the smallest stream wins. A stream no smaller than the best so
-      // far ends a polyhedron's search unmeasured: more bits only add bytes.
+      StreamSearch search;
+      search.tolerance = a->o.tolerance;
+      search.rms_tolerance = a->rms_tolerance;
+      search.levels = r.levels;
+      search.bits = a->bits;
+      search.fit_met = r.tolerance_met;
+      search.snap = a->snap;
+      search.metadata["levels"] = std::to_string(r.levels);
       std::vector<const Mesh*> polyhedra;
       for (const auto& fitted : r.candidates) polyhedra.push_back(&fitted.control);
       if (polyhedra.empty()) polyhedra.push_back(&r.control);
-      bool best_meets = false;
-      for (const Mesh* control : polyhedra) {
-        const int bound = a->bits > 0 ? a->bits : auto_bits(*control, a->o.tolerance);
-        const int lowest = a->bits > 0 || !r.tolerance_met ? bound : kMinQuantBits;
-        for (int b = lowest; b <= bound; ++b) {
-          CodecParams p = params;
-          p.quant_bits = b;
-          auto candidate = encode(*control, p);
-          if (best_meets && candidate.size() >= bytes.size()) break;
-          SurfaceDistance m = decoded_distance(mesh, decode(candidate, a->out).mesh, r.levels);
-          // Nothing met yet: keep the last tried, so that something is written (as before).
-          if (meets(m) || (!best_meets && b == bound && bytes.empty())) {
-            bytes = std::move(candidate);
-            d = m;
-            params.quant_bits = b;
-            chosen = control;
-            best_meets = meets(m);
-            if (best_meets) break;
-          }
-        }
-      }
-      // Rate-distortion snapping (snap_search above) on the chosen polyhedron, at its bits and
-      // one more: each snapped stream is decoded and measured like the plain ones, and the
-      // smallest that meets the tolerances wins (the plain one included).
-      const std::size_t unsnapped_bytes = bytes.size();
-      bool snapped_stream = false;
-      if (a->snap && a->bits == 0 && meets(d)) {
-        const int top = std::min(params.quant_bits + 1, auto_bits(*chosen, a->o.tolerance));
-        const double tolerance = a->o.tolerance * d.diagonal;
-        for (int bits = params.quant_bits; bits <= top; ++bits) {
-          CodecParams at = params;
-          at.quant_bits = bits;
-          SnapCandidate s = snap_search(mesh, *chosen, r.levels, at, tolerance, bytes.size(), meets, a->out);
-          if (s.bytes.empty()) continue;
-          bytes = std::move(s.bytes);
-          d = s.distance;
-          params.quant_bits = bits;
-          snapped_stream = true;
-        }
-      }
+      const ChosenStream s = smallest_stream(mesh, polyhedra, search, a->out);
+      const Mesh* chosen = polyhedra[static_cast<std::size_t>(s.polyhedron)];
+      const std::vector<std::uint8_t>& bytes = s.bytes;
+      const SurfaceDistance& d = s.distance;
       const double select_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
       write_stream_file(a->out, bytes);
       nlohmann::json j{{"input", a->in},
@@ -269,7 +140,7 @@ void add_compress_commands(CLI::App& app) {
                        {"corners", chosen->corners.size()},
                        {"candidates", polyhedra.size()},
                        {"levels", r.levels},
-                       {"bits", params.quant_bits},
+                       {"bits", s.bits},
                        {"stream_bytes", bytes.size()},
                        {"hausdorff", d.hausdorff_relative()},
                        {"rms", d.rms_relative()},
@@ -282,8 +153,8 @@ void add_compress_commands(CLI::App& app) {
                        {"seconds", seconds},
                        {"verify_seconds", verify_seconds},
                        {"bits_seconds", select_seconds},
-                       {"snapped", snapped_stream},
-                       {"unsnapped_bytes", unsnapped_bytes}};
+                       {"snapped", s.snapped},
+                       {"unsnapped_bytes", s.unsnapped_bytes}};
       if (a->json) {
         std::cout << j.dump(2) << "\n";
         return;

@@ -1,0 +1,97 @@
+// smallest_stream(): the stream compress writes. Fitted control polyhedra of a sample part (no
+// shared meshes needed); every claim is checked by decoding the returned bytes and measuring.
+#include <gtest/gtest.h>
+
+#include "codec/stream.h"
+#include "fitting/compress.h"
+#include "quality/smallest_stream.h"
+#include "samples/samples.h"
+
+namespace {
+
+struct Fixture {
+  mm::Mesh part;
+  mm::CompressResult fit;
+};
+
+const Fixture& block() {
+  static const Fixture f = [] {
+    Fixture x;
+    x.part = mm::samples::sample_parts().at(0).mesh;
+    mm::CompressOptions o;
+    o.verify = [&x](const mm::Mesh& c) { return mm::decoded_distance(x.part, c, 3).hausdorff_relative(); };
+    x.fit = mm::compress(x.part, o);
+    return x;
+  }();
+  return f;
+}
+
+mm::SurfaceDistance measured(const Fixture& f, const mm::ChosenStream& s) {
+  return mm::decoded_distance(f.part, mm::decode(s.bytes, "t").mesh, f.fit.levels);
+}
+
+mm::StreamSearch search_for(const Fixture& f) {
+  mm::StreamSearch s;
+  s.levels = f.fit.levels;
+  s.metadata["levels"] = std::to_string(f.fit.levels);
+  return s;
+}
+
+}  // namespace
+
+// A polyhedron pushed off the part misses the tolerance at every bits; the good one after it
+// is chosen, and what is returned is what its bytes decode to.
+TEST(SmallestStream, SkipsPolyhedraThatMissAndReportsTheDecodedDistance) {
+  const Fixture& f = block();
+  ASSERT_TRUE(f.fit.tolerance_met);
+  mm::Mesh off = f.fit.control;
+  off.points.col(2) *= 1.2;
+  const mm::ChosenStream s = mm::smallest_stream(f.part, {&off, &f.fit.control}, search_for(f), "t");
+  EXPECT_TRUE(s.meets);
+  EXPECT_EQ(s.polyhedron, 1);
+  EXPECT_LE(s.distance.hausdorff_relative(), 0.005);
+  EXPECT_EQ(measured(f, s).hausdorff, s.distance.hausdorff);
+  EXPECT_LE(s.bytes.size(), s.unsnapped_bytes);
+}
+
+// Nothing meets: the first polyhedron at its conservative bits, marked as missing.
+TEST(SmallestStream, NothingMeetsGivesTheFirstAtItsConservativeBits) {
+  const Fixture& f = block();
+  mm::Mesh off = f.fit.control;
+  off.points.col(2) *= 1.2;
+  const mm::ChosenStream s = mm::smallest_stream(f.part, {&off}, search_for(f), "t");
+  EXPECT_FALSE(s.meets);
+  EXPECT_EQ(s.bits, mm::conservative_bits(off, 0.005));
+  EXPECT_FALSE(s.snapped);
+  EXPECT_GT(measured(f, s).hausdorff_relative(), 0.005);
+  EXPECT_THROW(mm::smallest_stream(f.part, {}, search_for(f), "t"), std::invalid_argument);
+}
+
+// Given bits are used as they are, unsnapped: the bytes are the plain encoding at those bits.
+// Without them the search goes no higher than the conservative bits, and snapping never makes
+// the stream larger than the plain one it starts from.
+TEST(SmallestStream, GivenBitsAndSnapping) {
+  const Fixture& f = block();
+  mm::StreamSearch fixed = search_for(f);
+  fixed.bits = 14;
+  const mm::ChosenStream s = mm::smallest_stream(f.part, {&f.fit.control}, fixed, "t");
+  mm::CodecParams p;
+  p.quant_bits = 14;
+  p.metadata = fixed.metadata;
+  EXPECT_EQ(s.bytes, mm::encode(f.fit.control, p));
+  EXPECT_FALSE(s.snapped);
+
+  mm::StreamSearch plain = search_for(f), snapping = search_for(f);
+  plain.snap = false;
+  const mm::ChosenStream a = mm::smallest_stream(f.part, {&f.fit.control}, plain, "t");
+  const mm::ChosenStream b = mm::smallest_stream(f.part, {&f.fit.control}, snapping, "t");
+  EXPECT_FALSE(a.snapped);
+  EXPECT_EQ(a.bytes.size(), a.unsnapped_bytes);
+  EXPECT_LE(a.bits, mm::conservative_bits(f.fit.control, 0.005));
+  EXPECT_TRUE(a.meets && b.meets);
+  EXPECT_LE(b.bytes.size(), a.bytes.size());
+  EXPECT_EQ(b.unsnapped_bytes, a.bytes.size());
+  EXPECT_LE(measured(f, b).hausdorff_relative(), 0.005);
+  // Deterministic.
+  EXPECT_EQ(mm::smallest_stream(f.part, {&f.fit.control}, snapping, "t").bytes, b.bytes);
+}

@@ -1,0 +1,51 @@
+// The stream a compress run writes: among the control polyhedra that met the tolerance, each at
+// the fewest quantisation bits whose decoded surface still meets it, the smallest; then
+// rate-distortion snapping (CodecParams::snap_cells) spends the tolerance the chosen surface
+// leaves unused on bytes. Every candidate stream is decoded, subdivided and measured by
+// decoded_distance, the measurement `meshmark compare` reports: nothing is accepted on an
+// estimate. Deterministic for the same inputs.
+#pragma once
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "meshio/mesh.h"
+#include "quality/surface_distance.h"
+
+namespace mm {
+
+struct StreamSearch {
+  double tolerance = 0.005;    // symmetric Hausdorff distance / the part's diagonal
+  double rms_tolerance = 0;    // RMS distance / diagonal; 0: not bounded
+  int levels = 3;              // the level the stream is decoded and measured at
+  int bits = 0;                // > 0: these bits only, no snapping
+  // false when the fit itself missed the tolerance: the conservative bits only.
+  bool fit_met = true;
+  bool snap = true;
+  std::map<std::string, std::string> metadata;  // written into every candidate stream
+};
+
+struct ChosenStream {
+  std::vector<std::uint8_t> bytes;
+  SurfaceDistance distance;       // of the decoded `bytes`
+  int bits = 0;
+  int polyhedron = 0;             // index into the polyhedra given
+  bool snapped = false;
+  std::size_t unsnapped_bytes = 0;  // the chosen polyhedron's plain stream
+  bool meets = false;             // distance within both tolerances
+};
+
+// Fewest bits whose worst rounding error (half a grid step on each axis) stays below a fifth of
+// the tolerance, on the grid encode() uses for `control`: the most the search tries.
+int conservative_bits(const Mesh& control, double tolerance);
+
+// `polyhedra` fewest vertices first, in the part's units (compress()'s candidates, or its one
+// control mesh when none met the tolerance). Bits from 8 (kMinQuantBits) up to
+// conservative_bits; a polyhedron whose stream at some bits is already no smaller than the best
+// so far is not measured further. When nothing meets the tolerances, the first polyhedron at
+// its conservative bits is returned (meets = false). `name` names the streams in errors.
+ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& polyhedra, const StreamSearch& search,
+                             const std::string& name);
+
+}  // namespace mm
