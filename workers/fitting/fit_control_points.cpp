@@ -497,6 +497,8 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
                                              : n;
   FixedPatternProduct GS(normal.G, op.S, std::move(support_on)), StGS(St, GS.C, std::move(diagonal_on));
   Eigen::MatrixXd X = control.points;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  std::vector<int> analyzed_outer, analyzed_inner;  // the pattern the solver was analysed for
   for (int it = 0; it < o.iterations; ++it) {
     Points R = times3(op.S, X);
     if (it > 0) {
@@ -518,7 +520,17 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
     // the solver reads) is M's upper triangle, all that was computed of S^T G S.
     const Eigen::Map<const Eigen::SparseMatrix<double>> Mc(n, n, M.nonZeros(), M.outerIndexPtr(),
                                                            M.innerIndexPtr(), M.valuePtr());
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(Mc);
+    // M's pattern is the same in every iteration of a fit: its fill-reducing ordering and
+    // symbolic factorisation are computed once (compute() would redo both each time; the
+    // numeric factorisation is the same either way).
+    if (analyzed_outer.size() != static_cast<size_t>(n) + 1 || analyzed_inner.size() != static_cast<size_t>(M.nonZeros()) ||
+        !std::equal(analyzed_outer.begin(), analyzed_outer.end(), M.outerIndexPtr()) ||
+        !std::equal(analyzed_inner.begin(), analyzed_inner.end(), M.innerIndexPtr())) {
+      solver.analyzePattern(Mc);
+      analyzed_outer.assign(M.outerIndexPtr(), M.outerIndexPtr() + n + 1);
+      analyzed_inner.assign(M.innerIndexPtr(), M.innerIndexPtr() + M.nonZeros());
+    }
+    solver.factorize(Mc);
     if (solver.info() != Eigen::Success) throw std::runtime_error("fitting system is singular");
     Eigen::MatrixXd Xn = solver.solve(rhs);
     if (!Xn.allFinite()) throw std::runtime_error("fitting produced non-finite positions");
