@@ -170,8 +170,8 @@ struct E2E : ::testing::Test {
     EXPECT_EQ(roles, (std::set<std::string>{"decoded", "stream"}));
   }
   // `meshmark attack noise` (uniform, relative to the largest side), as a leaker would.
-  void attack_noise(const fs::path& in, const fs::path& out, double amplitude, int seed) {
-    std::string cmd = std::string(MESHMARK_EXE) + " attack noise " + in.string() + " " + out.string() +
+  void attack_noise(const fs::path& in, const fs::path& noisy, double amplitude, int seed) {
+    std::string cmd = std::string(MESHMARK_EXE) + " attack noise " + in.string() + " " + noisy.string() +
                       " --amplitude " + std::to_string(amplitude) + " --seed " + std::to_string(seed) + " >/dev/null";
     ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
   }
@@ -376,8 +376,9 @@ TEST_F(E2E, KillNineMidBatchThenRestartCompletesEveryJobExactlyOnce) {
     for (const auto& e : fs::directory_iterator(drop / "done/protect" / c)) {
       std::string name = e.path().filename().string();
       EXPECT_NE(name[0], '.') << e.path();  // no half-written reason file survives a restart
-      if (name.size() > 5 && name.substr(name.size() - 5) == ".json")
+      if (name.size() > 5 && name.substr(name.size() - 5) == ".json") {
         EXPECT_TRUE(fs::exists(e.path().string().substr(0, e.path().string().size() - 5))) << e.path();
+      }
     }
   }
   EXPECT_TRUE(st->integrity_ok());

@@ -114,8 +114,11 @@ struct ProtectDetect : ::testing::Test {
     EXPECT_LE(v.best.binomial_p, v.best.p_value) << what;
     EXPECT_LE(v.best.calibrated_p, v.best.p_value) << what;
     EXPECT_EQ(v.best.decoded_payload, fx->copies[i].payload) << what;
-    for (const auto& s : v.scores)
-      if (s.copy_id != fx->copies[i].copy_id) EXPECT_GT(s.corrected_p, 1e-6) << what;
+    for (const auto& s : v.scores) {
+      if (s.copy_id != fx->copies[i].copy_id) {
+        EXPECT_GT(s.corrected_p, 1e-6) << what;
+      }
+    }
     std::cout << what << ": -log10 p " << v.best.neg_log10_p << " (" << m << "; binomial "
               << v.best.binomial_neg_log10_p << ", calibrated " << v.best.calibrated_neg_log10_p << ", null sd "
               << v.best.null_sd << " = " << v.best.null_sd * std::sqrt(double(v.best.compared)) << "/sqrt(m), m "
