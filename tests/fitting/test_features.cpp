@@ -213,8 +213,11 @@ TEST(ControlPolyhedron, FandiskCreasesFollowSharpEdges) {
     EXPECT_TRUE(feature_corners.count(c.source[v]));
     tagged.insert(c.source[v]);
   }
-  for (int v : f.corners)
-    if (f.sharp_valence[v] >= 2) EXPECT_TRUE(tagged.count(v)) << "corner " << v << " lost";
+  for (int v : f.corners) {
+    if (f.sharp_valence[v] >= 2) {
+      EXPECT_TRUE(tagged.count(v)) << "corner " << v << " lost";
+    }
+  }
   // Each crease joins two vertices of the same input polyline (it shortcuts along it).
   std::map<int, std::set<int>> lines_of;
   for (size_t l = 0; l < s.polylines.size(); ++l)
@@ -243,6 +246,8 @@ TEST(Features, ShortDanglingFragmentsAreDropped) {
   auto s = mm::segment(m, pruned);
   for (const auto& line : s.polylines) {
     bool open_both = pruned.sharp_valence[line.front()] == 1 && pruned.sharp_valence[line.back()] == 1;
-    if (open_both) EXPECT_GE(line.size(), 4u);
+    if (open_both) {
+      EXPECT_GE(line.size(), 4u);
+    }
   }
 }

@@ -1,5 +1,7 @@
 #include "quality/triangle_distance_tree.h"
 
+#include "quality/bvh_layout.h"
+
 #include <CGAL/Simple_cartesian.h>
 
 #include <Eigen/Geometry>
@@ -94,7 +96,6 @@ struct TriangleDistanceTree::Impl {
   std::vector<ChildBoxes> child_boxes;  // per node (used for inner nodes)
   double root_lo[3], root_hi[3];
   double eps = 0;            // distance slack of the skip tests (see closest())
-  std::vector<int> bin;      // while building: each triangle's bin in the current split
 
   // Boxes bottom-up (children come after their parent in pre-order); returns node's box.
   Eigen::AlignedBox3d fill_boxes(int index, const std::vector<Eigen::AlignedBox3d>& box, const std::vector<int>& order) {
@@ -112,85 +113,6 @@ struct TriangleDistanceTree::Impl {
     }
     return l.merged(r);
   }
-
-  double area(const Eigen::AlignedBox3d& b) const {
-    if (b.isEmpty()) return 0;
-    const Eigen::Vector3d e = b.sizes();
-    return e.x() * e.y() + e.y() * e.z() + e.z() * e.x();
-  }
-
-  // Binned surface-area split along the centroids' longest axis (as closest_point_bvh.cpp), a
-  // median split when that finds nothing.
-  int build(std::vector<int>& order, int begin, int end, const std::vector<Eigen::Vector3d>& centroid,
-            const std::vector<Eigen::AlignedBox3d>& box, int depth) {
-    const int index = static_cast<int>(nodes.size());
-    nodes.push_back(Node{});
-    if (end - begin <= kLeafSize) {
-      nodes[static_cast<size_t>(index)].first = begin;
-      nodes[static_cast<size_t>(index)].count = end - begin;
-      return index;
-    }
-    Eigen::Vector3d lo = centroid[static_cast<size_t>(order[static_cast<size_t>(begin)])], hi = lo;
-    for (int k = begin + 1; k < end; ++k) {
-      lo = lo.cwiseMin(centroid[static_cast<size_t>(order[static_cast<size_t>(k)])]);
-      hi = hi.cwiseMax(centroid[static_cast<size_t>(order[static_cast<size_t>(k)])]);
-    }
-    constexpr int kBins = 12;
-    int axis = 0;
-    (hi - lo).maxCoeff(&axis);
-    const double extent = hi[axis] - lo[axis];
-    auto bin_of = [&](int t) {
-      return std::min(kBins - 1, static_cast<int>(kBins * (centroid[static_cast<size_t>(t)][axis] - lo[axis]) / extent));
-    };
-    int best_bin = -1;
-    if (extent > 0) {
-      Eigen::AlignedBox3d bins[kBins];
-      int counts[kBins] = {};
-      for (int k = begin; k < end; ++k) {
-        const int t = order[static_cast<size_t>(k)];
-        const int b = bin_of(t);
-        bin[static_cast<size_t>(t)] = b;  // for the partition below
-        ++counts[b];
-        bins[b].extend(box[static_cast<size_t>(t)]);
-      }
-      double right_area[kBins];
-      int right_count[kBins];
-      Eigen::AlignedBox3d acc;
-      int cnt = 0;
-      for (int b = kBins - 1; b > 0; --b) {
-        acc.extend(bins[b]);
-        cnt += counts[b];
-        right_area[b] = area(acc);
-        right_count[b] = cnt;
-      }
-      acc.setEmpty();
-      cnt = 0;
-      double best_cost = std::numeric_limits<double>::infinity();
-      for (int b = 0; b + 1 < kBins; ++b) {
-        acc.extend(bins[b]);
-        cnt += counts[b];
-        if (cnt == 0 || right_count[b + 1] == 0) continue;
-        const double cost = area(acc) * cnt + right_area[b + 1] * right_count[b + 1];
-        if (cost < best_cost) best_cost = cost, best_bin = b;
-      }
-    }
-    int mid = begin + (end - begin) / 2;
-    if (best_bin >= 0 && depth < 48) {
-      mid = static_cast<int>(std::partition(order.begin() + begin, order.begin() + end,
-                                            [&](int t) { return bin[static_cast<size_t>(t)] <= best_bin; }) -
-                             order.begin());
-    } else {
-      std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end, [&](int x, int y) {
-        const double cx = centroid[static_cast<size_t>(x)][axis], cy = centroid[static_cast<size_t>(y)][axis];
-        return cx < cy || (cx == cy && x < y);
-      });
-    }
-    build(order, begin, mid, centroid, box, depth + 1);
-    const int right = build(order, mid, end, centroid, box, depth + 1);
-    nodes[static_cast<size_t>(index)].first = right;
-    nodes[static_cast<size_t>(index)].count = 0;
-    return index;
-  }
 };
 
 TriangleDistanceTree::TriangleDistanceTree(const std::vector<std::array<Eigen::Vector3d, 3>>& triangles)
@@ -206,12 +128,10 @@ TriangleDistanceTree::TriangleDistanceTree(const std::vector<std::array<Eigen::V
     for (const auto& v : tr) box[static_cast<size_t>(t)].extend(v);
     all.extend(box[static_cast<size_t>(t)]);
   }
-  std::vector<int> order(static_cast<size_t>(n));
-  std::iota(order.begin(), order.end(), 0);
-  impl_->nodes.reserve(static_cast<size_t>(2 * (n / kLeafSize + 1)));
-  impl_->bin.resize(static_cast<size_t>(n));
-  impl_->build(order, 0, n, centroid, box, 0);
-  impl_->bin = {};
+  BvhLayout layout = binned_sah_layout(centroid, box, kLeafSize);
+  const std::vector<int>& order = layout.order;
+  impl_->nodes.reserve(layout.nodes.size());
+  for (const auto& nd : layout.nodes) impl_->nodes.push_back(Node{nd.first, nd.count});
   impl_->child_boxes.resize(impl_->nodes.size());
   const Eigen::AlignedBox3d root = impl_->fill_boxes(0, box, order);
   for (int k = 0; k < 3; ++k) impl_->root_lo[k] = root.min()[k], impl_->root_hi[k] = root.max()[k];
