@@ -1,6 +1,7 @@
 #include "fitting/closest_point_bvh.h"
 
 #include "quality/bvh_layout.h"
+#include "quality/triangle_closest_point.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -67,35 +68,8 @@ struct TriSlot {
     const double* a = v[0];
     const double* b = v[1];
     const double* c = v[2];
-    double ab[3], ac[3], ap[3], bp[3], cp[3];
-    for (int k = 0; k < 3; ++k) {
-      ab[k] = b[k] - a[k];
-      ac[k] = c[k] - a[k];
-      ap[k] = p[k] - a[k];
-      bp[k] = p[k] - b[k];
-      cp[k] = p[k] - c[k];
-    }
     double u, s, t;  // weights of a, b, c
-    const double d1 = dot3(ab, ap), d2 = dot3(ac, ap);
-    const double d3 = dot3(ab, bp), d4 = dot3(ac, bp);
-    const double d5 = dot3(ab, cp), d6 = dot3(ac, cp);
-    const double vc = d1 * d4 - d3 * d2, vb = d5 * d2 - d1 * d6, va = d3 * d6 - d5 * d4;
-    if (d1 <= 0 && d2 <= 0) {
-      u = 1, s = 0, t = 0;
-    } else if (d3 >= 0 && d4 <= d3) {
-      u = 0, s = 1, t = 0;
-    } else if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-      s = d1 / (d1 - d3), u = 1 - s, t = 0;
-    } else if (d6 >= 0 && d5 <= d6) {
-      u = 0, s = 0, t = 1;
-    } else if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-      t = d2 / (d2 - d6), u = 1 - t, s = 0;
-    } else if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
-      t = (d4 - d3) / ((d4 - d3) + (d5 - d6)), s = 1 - t, u = 0;
-    } else {
-      const double denom = 1.0 / (va + vb + vc);
-      s = vb * denom, t = vc * denom, u = 1 - s - t;
-    }
+    closest_point_weights(a, b, c, p, u, s, t);
     double y[3], dist2 = 0;
     for (int k = 0; k < 3; ++k) {
       y[k] = u * a[k] + s * b[k] + t * c[k];
