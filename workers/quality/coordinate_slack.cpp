@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 
+#include "quality/triangle_distance_tree.h"
 #include "subdivision/subdivide.h"
 
 namespace mm {
@@ -48,10 +49,19 @@ std::vector<double> coordinate_slack(const Mesh& part, const Mesh& control, int 
   std::vector<Triangle> part_tris;
   fan(part, part_tris, nullptr);
   if (part_tris.empty()) throw InputError("quality", "part has no face of positive area");
-  Tree part_tree(part_tris.begin(), part_tris.end());
-  part_tree.accelerate_distance_queries();
+  // The quality code's own tree (CGAL's numbers bit for bit); refined vertices come in mesh
+  // order, so each query starts from the previous answer.
+  std::vector<std::array<Eigen::Vector3d, 3>> part_corners;
+  part_corners.reserve(part_tris.size());
+  for (const Triangle& t : part_tris) {
+    std::array<Eigen::Vector3d, 3> c;
+    for (int j = 0; j < 3; ++j) c[static_cast<std::size_t>(j)] = {t[j].x(), t[j].y(), t[j].z()};
+    part_corners.push_back(c);
+  }
+  const TriangleDistanceTree part_tree(part_corners);
   std::vector<double> e(static_cast<std::size_t>(nr));
-  for (int r = 0; r < nr; ++r) e[r] = std::sqrt(part_tree.squared_distance(point(refined.points, r)));
+  int hint = -1;
+  for (int r = 0; r < nr; ++r) e[r] = std::sqrt(part_tree.squared_distance(refined.points.row(r).transpose(), hint));
 
   std::vector<Triangle> tris;
   std::vector<std::array<int, 3>> corners;
