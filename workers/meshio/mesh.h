@@ -25,7 +25,6 @@ struct Mesh {
 // Undirected edges (i < j), sorted, each once.
 std::vector<std::pair<int, int>> unique_edges(const Mesh& mesh);
 
-
 // A problem with an input file or stream: names it and says what is wrong.
 class InputError : public std::runtime_error {
  public:
