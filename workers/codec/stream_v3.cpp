@@ -477,10 +477,6 @@ int levels_code(const std::map<std::string, std::string>& metadata) {
   return it->second[0] - '0';
 }
 
-struct SortedEdges {
-  std::vector<std::pair<int, int>> edges;
-};
-
 // The header and the faces are the same for every coordinate mode, so they are coded once and
 // the coder's state is copied for each mode.
 std::vector<std::uint8_t> header_bytes(const Mesh& mesh, const Quantization& q, int levels) {
