@@ -1,5 +1,8 @@
 #include "store/sqlite_db.h"
 
+#include <chrono>
+#include <thread>
+
 namespace mm::store::sql {
 namespace {
 [[noreturn]] void fail(sqlite3* db, const std::string& what) {
@@ -7,7 +10,7 @@ namespace {
 }
 }  // namespace
 
-Db::Db(const std::string& path, int busy_timeout_ms) : path_(path) {
+Db::Db(const std::string& path, int busy_timeout_ms) : path_(path), busy_timeout_ms_(busy_timeout_ms) {
   int rc = sqlite3_open_v2(path.c_str(), &db_,
                            SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
   if (rc != SQLITE_OK) {
@@ -24,12 +27,28 @@ Db::~Db() {
   if (db_) sqlite3_close_v2(db_);
 }
 
-void Db::exec(const std::string& sql, const char* what) {
+// sqlite3_exec's result code; `msg` gets the error text when it is not SQLITE_OK.
+int Db::exec_once(const std::string& sql, std::string& msg) {
   char* err = nullptr;
-  if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
-    std::string msg = err ? err : sqlite3_errmsg(db_);
-    sqlite3_free(err);
-    throw StoreError(std::string(what) + ": " + msg);
+  const int rc = sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err);
+  if (rc != SQLITE_OK) msg = err ? err : sqlite3_errmsg(db_);
+  sqlite3_free(err);
+  return rc;
+}
+
+void Db::exec(const std::string& sql, const char* what) {
+  std::string msg;
+  if (exec_once(sql, msg) != SQLITE_OK) throw StoreError(std::string(what) + ": " + msg);
+}
+
+void Db::exec_retrying_busy(const std::string& sql, const char* what) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(busy_timeout_ms_);
+  for (std::string msg;;) {
+    const int rc = exec_once(sql, msg);
+    if (rc == SQLITE_OK) return;
+    if ((rc & 0xff) != SQLITE_BUSY || std::chrono::steady_clock::now() >= deadline)
+      throw StoreError(std::string(what) + ": " + msg);
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
 }
 

@@ -19,11 +19,18 @@ class Db {
   Db& operator=(const Db&) = delete;
   sqlite3* get() const { return db_; }
   void exec(const std::string& sql, const char* what);  // StoreError naming `what`
+  // The same, retried while SQLite answers SQLITE_BUSY without waiting, for up to the busy
+  // timeout. Changing the journal mode needs an exclusive lock, and SQLite may refuse it at once
+  // (no busy handler) while another connection opening the same new database holds a lock: four
+  // concurrent openers failed "enabling WAL: database is locked" about once in 30 runs.
+  void exec_retrying_busy(const std::string& sql, const char* what);
   std::string path() const { return path_; }
 
  private:
+  int exec_once(const std::string& sql, std::string& msg);
   sqlite3* db_ = nullptr;
   std::string path_;
+  int busy_timeout_ms_ = 0;
 };
 
 class Stmt {

@@ -188,7 +188,7 @@ class SqliteStore final : public Store {
     // WAL: readers never block the writer and a commit is one sequential append. synchronous=FULL
     // fsyncs the WAL on every commit, so a completed job stays completed across power loss, not
     // only across process crashes (NORMAL would be enough for the latter); see docs/store.md.
-    db_.exec("PRAGMA journal_mode=WAL", "enabling WAL");
+    db_.exec_retrying_busy("PRAGMA journal_mode=WAL", "enabling WAL");
     db_.exec(opt_.synchronous_full ? "PRAGMA synchronous=FULL" : "PRAGMA synchronous=NORMAL",
              "setting synchronous");
     db_.exec("PRAGMA foreign_keys=ON", "enabling foreign keys");
