@@ -16,7 +16,6 @@ constexpr int kLeafSize = 4;
 
 // Two doubles in one register (GCC/Clang vector extension): a node's two child boxes are
 // measured at once.
-typedef double v2d __attribute__((vector_size(16)));
 
 double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
@@ -176,7 +175,7 @@ class Tree {
       } else {
         const Node& l = nodes_[i + 1];
         const Node& r = nodes_[static_cast<size_t>(nd.first)];
-        ChildBoxes& cb = child_boxes_[i];
+        BvhChildBoxes& cb = child_boxes_[i];
         for (int k = 0; k < 3; ++k) {
           nd.lo[k] = std::min(l.lo[k], r.lo[k]);
           nd.hi[k] = std::max(l.hi[k], r.hi[k]);
@@ -216,17 +215,8 @@ class Tree {
         continue;
       }
       const int l = e.node + 1, r = nd.first;
-      // Both children's boxes side by side: one pass over the axes measures both.
-      const ChildBoxes& cb = child_boxes_[static_cast<size_t>(e.node)];
-      v2d d = {0, 0};
-      for (int k = 0; k < 3; ++k) {
-        const v2d pk = {p[k], p[k]}, zero = {0, 0};
-        const v2d a = *reinterpret_cast<const v2d*>(cb.lo[k]) - pk, b = pk - *reinterpret_cast<const v2d*>(cb.hi[k]);
-        v2d t = a > b ? a : b;
-        t = t > zero ? t : zero;
-        d += t * t;
-      }
-      const double dl = d[0], dr = d[1];
+      double dl, dr;
+      child_box_distances(child_boxes_[static_cast<size_t>(e.node)], p, dl, dr);
       if (dl <= dr) {
         if (dr < best2) stack[top++] = {r, dr};
         if (dl < best2) stack[top++] = {l, dl};
@@ -247,10 +237,6 @@ class Tree {
     int count;  // leaf: number of slots; inner: 0
   };
 
-  struct ChildBoxes {
-    alignas(16) double lo[3][2];  // [axis][left, right]
-    alignas(16) double hi[3][2];
-  };
 
   static double box2(const Node& nd, const double* p) {
     double d2 = 0;
@@ -263,7 +249,7 @@ class Tree {
 
   std::vector<Prim> prims_;
   std::vector<Node> nodes_;   // pre-order: children after their parent
-  std::vector<ChildBoxes> child_boxes_;  // per inner node: its children's boxes, for the search
+  std::vector<BvhChildBoxes> child_boxes_;  // per inner node: its children's boxes, for the search
   std::vector<Slot> slots_;   // primitives in leaf order
   std::vector<int> slot_of_;  // caller's index -> slot
   int regular_ = 0;

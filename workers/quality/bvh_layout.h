@@ -20,6 +20,28 @@ struct BvhLayout {
   std::vector<int> order;   // primitive ids in leaf order
 };
 
+// Per inner node: its two children's boxes side by side ([axis][left, right]), so one pass over
+// the axes measures the distance to both (two SIMD lanes): the inner loop of both searches.
+struct BvhChildBoxes {
+  alignas(16) double lo[3][2];
+  alignas(16) double hi[3][2];
+};
+
+// Squared distances from p to the left and the right child box.
+inline void child_box_distances(const BvhChildBoxes& cb, const double* p, double& left, double& right) {
+  typedef double v2d __attribute__((vector_size(16)));
+  v2d d = {0, 0};
+  for (int k = 0; k < 3; ++k) {
+    const v2d pk = {p[k], p[k]}, zero = {0, 0};
+    const v2d a = *reinterpret_cast<const v2d*>(cb.lo[k]) - pk, b = pk - *reinterpret_cast<const v2d*>(cb.hi[k]);
+    v2d t = a > b ? a : b;
+    t = t > zero ? t : zero;
+    d += t * t;
+  }
+  left = d[0];
+  right = d[1];
+}
+
 // One centroid and one box per primitive; leaves hold at most `leaf_size` primitives.
 BvhLayout binned_sah_layout(const std::vector<Eigen::Vector3d>& centroid,
                             const std::vector<Eigen::AlignedBox3d>& box, int leaf_size);

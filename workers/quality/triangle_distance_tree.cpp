@@ -31,12 +31,6 @@ struct Node {
   int count;  // leaf: number of triangles; inner: 0
 };
 
-// Per inner node: its two children's boxes side by side, measured in one pass (two lanes).
-typedef double v2d __attribute__((vector_size(16)));
-struct ChildBoxes {
-  alignas(16) double lo[3][2];  // [axis][left, right]
-  alignas(16) double hi[3][2];
-};
 
 // Squared distance from p to the triangle a b c by Ericson's closest point (Real-Time Collision
 // Detection 5.1.5): other arithmetic than CGAL's projection, the same distance up to rounding,
@@ -66,7 +60,7 @@ double box2(const double* lo, const double* hi, const double* p) {
 struct TriangleDistanceTree::Impl {
   std::vector<Tri> tris;     // leaf order
   std::vector<Node> nodes;   // pre-order
-  std::vector<ChildBoxes> child_boxes;  // per node (used for inner nodes)
+  std::vector<BvhChildBoxes> child_boxes;  // per node (used for inner nodes)
   double root_lo[3], root_hi[3];
   double eps = 0;            // distance slack of the skip tests (see closest())
 
@@ -79,7 +73,7 @@ struct TriangleDistanceTree::Impl {
       return out;
     }
     const Eigen::AlignedBox3d l = fill_boxes(index + 1, box, order), r = fill_boxes(nd.first, box, order);
-    ChildBoxes& cb = child_boxes[static_cast<size_t>(index)];
+    BvhChildBoxes& cb = child_boxes[static_cast<size_t>(index)];
     for (int k = 0; k < 3; ++k) {
       cb.lo[k][0] = l.min()[k], cb.lo[k][1] = r.min()[k];
       cb.hi[k][0] = l.max()[k], cb.hi[k][1] = r.max()[k];
@@ -191,16 +185,8 @@ double TriangleDistanceTree::squared_distance(const Eigen::Vector3d& q, int& hin
       continue;
     }
     const int l = e.node + 1, r = nd.first;
-    const ChildBoxes& cb = im.child_boxes[static_cast<size_t>(e.node)];
-    v2d dd = {0, 0};
-    for (int k = 0; k < 3; ++k) {
-      const v2d pk = {p[k], p[k]}, zero = {0, 0};
-      const v2d a = *reinterpret_cast<const v2d*>(cb.lo[k]) - pk, b = pk - *reinterpret_cast<const v2d*>(cb.hi[k]);
-      v2d t = a > b ? a : b;
-      t = t > zero ? t : zero;
-      dd += t * t;
-    }
-    const double dl = dd[0], dr = dd[1];
+    double dl, dr;
+    child_box_distances(im.child_boxes[static_cast<size_t>(e.node)], p, dl, dr);
     if (dl <= dr) {
       if (dr <= limit) stack[top++] = {r, dr};
       if (dl <= limit) stack[top++] = {l, dl};
