@@ -94,6 +94,8 @@ void add_compress_commands(CLI::App& app) {
         ->check(CLI::Range(1e-6, 0.5));
     c->add_flag("!--no-snap", a->snap,
                 "keep every coordinate on its nearest grid value (no rate-distortion snapping)");
+    c->add_flag("!--no-quads", a->o.rail_quads,
+                "fit triangles only (no quads on strips between two creases; faster, often larger)");
     c->add_flag("--json", a->json, "print the summary as JSON");
     c->callback([a] {
       Mesh mesh = read_mesh(a->in);
@@ -136,6 +138,8 @@ void add_compress_commands(CLI::App& app) {
                        {"input_faces", mesh.num_faces()},
                        {"control_vertices", chosen->num_vertices()},
                        {"control_faces", chosen->num_faces()},
+                       {"quads", std::count_if(chosen->faces.begin(), chosen->faces.end(),
+                                               [](const std::vector<int>& f) { return f.size() == 4; })},
                        {"creases", chosen->creases.size()},
                        {"corners", chosen->corners.size()},
                        {"candidates", polyhedra.size()},

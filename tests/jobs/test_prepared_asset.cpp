@@ -64,7 +64,8 @@ TEST(PreparedAsset, CacheKeyNamesEveryCompressionOption) {
   for (auto change : {+[](PrepareParams& q) { q.compression.tolerance = 0.01; },
                       +[](PrepareParams& q) { q.compression.max_vertices = 500; },
                       +[](PrepareParams& q) { q.compression.levels = 2; },
-                      +[](PrepareParams& q) { q.compression.angle_degrees = 40; }}) {
+                      +[](PrepareParams& q) { q.compression.angle_degrees = 40; },
+                      +[](PrepareParams& q) { q.compression.rail_quads = false; }}) {
     PrepareParams q;
     change(q);
     EXPECT_NE(q.key(), k);

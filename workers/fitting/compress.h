@@ -18,6 +18,9 @@ struct CompressOptions {
   int levels = 3;               // subdivision levels the fit is measured at
   double angle_degrees = 35.0;  // dihedral angle above which an edge is a crease
   int max_rounds = 6;           // decimate-and-fit rounds at most
+  // Also fit each round's polyhedron with its crease-railed strips paired into quads
+  // (fitting/rail_quads.h); both are candidates. Costs a second fit per round.
+  bool rail_quads = true;
   // Optional: a denser measurement of a candidate control mesh (the part's units, creases and
   // corners tagged): its symmetric Hausdorff distance relative to the part's bounding-box
   // diagonal. When set, a round meets the tolerance only if this measurement does too (the fit's

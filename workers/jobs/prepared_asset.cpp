@@ -98,11 +98,13 @@ std::string PrepareParams::key() const {
   // round-trip form); max_control_vertices only refuses and is not. v1 (normalised input mesh)
   // rows stay readable for the copies issued from them. "verify=dense": rounds meet the
   // tolerance only by the quality code's dense measurement (as `meshmark compress`); rows made
-  // before it (without) stay readable the same way.
+  // before it (without) stay readable the same way, and so do rows fitted with triangles only
+  // (before rail quads: no ";quads=rail").
   const CompressOptions& c = compression;
   return "prepare-v2;compress;verify=dense;tolerance=" + shortest(c.tolerance) + ";max_vertices=" + std::to_string(c.max_vertices) +
          ";levels=" + std::to_string(c.levels) + ";angle=" + shortest(c.angle_degrees) +
-         ";max_rounds=" + std::to_string(c.max_rounds) + ";basis=dense-kirchhoff";
+         ";max_rounds=" + std::to_string(c.max_rounds) + (c.rail_quads ? ";quads=rail" : "") +
+         ";basis=dense-kirchhoff";
 }
 
 std::string ShapeSignature::to_json() const {

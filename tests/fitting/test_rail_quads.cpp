@@ -1,0 +1,195 @@
+// Rail quads: which triangle pairs become quads, and why they are worth it (a wall between two
+// crease rings does not sag with quads, and compress() needs fewer vertices for a cylinder).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <set>
+
+#include "fitting/compress.h"
+#include "fitting/rail_quads.h"
+#include "quality/surface_distance.h"
+#include "subdivision/subdivide.h"
+
+namespace {
+
+// A closed cylinder: `rows` rows of `n` triangle pairs, fan caps around a centre vertex, the two
+// rim rings as creases when `crease_rims`.
+mm::Mesh cylinder(int n, int rows, double radius, double height, bool crease_rims, double twist = 0) {
+  mm::Mesh m;
+  m.points.resize((rows + 1) * n + 2, 3);
+  for (int r = 0; r <= rows; ++r)
+    for (int i = 0; i < n; ++i)
+      m.points.row(r * n + i) << radius * std::cos(2 * M_PI * (i + twist * r) / n),
+          radius * std::sin(2 * M_PI * (i + twist * r) / n), height * r / rows;
+  const int bottom = (rows + 1) * n, top = bottom + 1;
+  m.points.row(bottom) << 0, 0, 0;
+  m.points.row(top) << 0, 0, height;
+  for (int r = 0; r < rows; ++r)
+    for (int i = 0; i < n; ++i) {
+      const int a = r * n + i, b = r * n + (i + 1) % n, c = a + n, d = b + n;
+      m.faces.push_back({a, b, d});
+      m.faces.push_back({a, d, c});
+    }
+  for (int i = 0; i < n; ++i) {
+    m.faces.push_back({bottom, (i + 1) % n, i});
+    m.faces.push_back({top, rows * n + i, rows * n + (i + 1) % n});
+  }
+  if (crease_rims)
+    for (int i = 0; i < n; ++i)
+      for (int base : {0, rows * n}) {
+        const int a = base + i, b = base + (i + 1) % n;
+        m.creases.emplace_back(std::min(a, b), std::max(a, b));
+      }
+  return m;
+}
+
+int count_quads(const mm::Mesh& m) {
+  int q = 0;
+  for (const auto& f : m.faces) q += f.size() == 4;
+  return q;
+}
+
+// Every directed edge once (consistently oriented) and, if `closed`, its reverse too.
+void expect_oriented(const mm::Mesh& m, bool closed) {
+  std::map<std::pair<int, int>, int> directed;
+  for (const auto& f : m.faces)
+    for (size_t k = 0; k < f.size(); ++k) ++directed[{f[k], f[(k + 1) % f.size()]}];
+  for (const auto& [e, count] : directed) {
+    EXPECT_EQ(count, 1) << e.first << "->" << e.second;
+    if (closed) {
+      EXPECT_EQ(directed.count({e.second, e.first}), 1u) << e.first << "->" << e.second;
+    }
+  }
+}
+
+// Radius in the xy plane of the refined vertices strictly between the rims, and of those on them.
+struct Radii {
+  double wall_min = 1e300, wall_max = 0, rim_min = 1e300, rim_max = 0;
+};
+Radii refined_radii(const mm::Mesh& control, double height) {
+  const mm::SubdivisionOperator op = mm::build_subdivision(control, 3);
+  const mm::Points p = op.S * control.points;
+  std::vector<char> on_rim(p.rows(), 0);
+  for (auto [a, b] : op.refined.creases) on_rim[a] = on_rim[b] = 1;
+  Radii r;
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    const double rad = std::hypot(p(i, 0), p(i, 1)), z = p(i, 2);
+    if (on_rim[i]) {
+      r.rim_min = std::min(r.rim_min, rad);
+      r.rim_max = std::max(r.rim_max, rad);
+    } else if (z > 1e-9 && z < height - 1e-9) {
+      r.wall_min = std::min(r.wall_min, rad);
+      r.wall_max = std::max(r.wall_max, rad);
+    }
+  }
+  return r;
+}
+
+TEST(RailQuads, PairsTheWallBetweenTwoCreaseRimsAndNothingElse) {
+  const mm::Mesh tri = cylinder(8, 1, 1.0, 0.5, true);
+  const mm::Mesh q = mm::pair_rail_quads(tri);
+  EXPECT_EQ(count_quads(q), 8);
+  EXPECT_EQ(q.num_faces(), 8 + 16);  // 8 wall quads, 16 cap triangles untouched
+  EXPECT_EQ(q.points, tri.points);
+  EXPECT_EQ(q.creases, tri.creases);
+  expect_oriented(q, true);
+  // Every quad has two rim edges: one on each ring.
+  const std::set<std::pair<int, int>> creases(q.creases.begin(), q.creases.end());
+  for (const auto& f : q.faces) {
+    if (f.size() != 4) continue;
+    int rails = 0;
+    for (int k = 0; k < 4; ++k)
+      rails += creases.count({std::min(f[k], f[(k + 1) % 4]), std::max(f[k], f[(k + 1) % 4])}) > 0;
+    EXPECT_EQ(rails, 2);
+  }
+}
+
+TEST(RailQuads, LeavesStripsWithoutTwoCreaseRailsAsTriangles) {
+  // No creases: nothing is a rail.
+  EXPECT_EQ(count_quads(mm::pair_rail_quads(cylinder(8, 1, 1.0, 0.5, false))), 0);
+  // Two rows: each pair has one rim edge and one edge in the middle row, not two rails.
+  EXPECT_EQ(count_quads(mm::pair_rail_quads(cylinder(8, 2, 1.0, 0.5, true))), 0);
+}
+
+TEST(RailQuads, RejectsConcaveAndSkewedCells) {
+  // A flat pair across edge 0-2 whose quad 0-1-2-3 would be concave at 2; rails 0-1 and 2-3.
+  mm::Mesh m;
+  m.points.resize(4, 3);
+  m.points << 0, 0, 0, 1, 0, 0, 0.2, 0.2, 0, 0, 1, 0;
+  m.faces = {{0, 1, 2}, {0, 2, 3}};
+  m.creases = {{0, 1}, {2, 3}};
+  EXPECT_EQ(count_quads(mm::pair_rail_quads(m)), 0);
+  // The same pair as a square is paired, with both triangles' orientation.
+  m.points.row(2) << 1, 1, 0;
+  const mm::Mesh q = mm::pair_rail_quads(m);
+  ASSERT_EQ(count_quads(q), 1);
+  expect_oriented(q, false);
+  // Folded up along the diagonal by 78 degrees: not paired.
+  m.points.row(3) << 0, 0.3, 1;
+  EXPECT_EQ(count_quads(mm::pair_rail_quads(m, 60.0)), 0);
+}
+
+TEST(RailQuads, QuadWallIsTheRuledSurfaceBetweenTheRimCurves) {
+  // Catmull-Clark on a one-quad-high strip between two crease curves is the ruled surface
+  // between their cubic B-splines: with the rims' vertices one above the other, every wall point
+  // lies straight above a rim point.
+  const mm::Mesh quads = mm::pair_rail_quads(cylinder(8, 1, 1.0, 0.5, true));
+  ASSERT_EQ(count_quads(quads), 8);
+  const mm::SubdivisionOperator op = mm::build_subdivision(quads, 3);
+  const mm::Points p = op.S * quads.points;
+  std::vector<char> on_rim(p.rows(), 0);
+  for (auto [a, b] : op.refined.creases) on_rim[a] = on_rim[b] = 1;
+  int wall = 0;
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    if (on_rim[i] || p(i, 2) < 1e-9 || p(i, 2) > 0.5 - 1e-9) continue;
+    ++wall;
+    double nearest = 1e300;
+    for (Eigen::Index j = 0; j < p.rows(); ++j)
+      if (on_rim[j]) nearest = std::min(nearest, std::hypot(p(i, 0) - p(j, 0), p(i, 1) - p(j, 1)));
+    EXPECT_LT(nearest, 1e-12) << "wall vertex " << i;
+  }
+  EXPECT_GT(wall, 0);
+}
+
+TEST(RailQuads, QuadWallSagsLessThanTrianglesBetweenOffsetRims) {
+  // Rims offset by half a vertex step, as decimation leaves them: both walls sag towards the
+  // chords, the triangles' (whose diagonals span farther) about three times as much.
+  const mm::Mesh tri = cylinder(8, 1, 1.0, 0.5, true, 0.5);
+  const Radii quads = refined_radii(mm::pair_rail_quads(tri), 0.5);
+  const Radii tris = refined_radii(tri, 0.5);
+  EXPECT_DOUBLE_EQ(quads.rim_min, tris.rim_min);
+  const double quad_sag = quads.rim_min - quads.wall_min, tri_sag = tris.rim_min - tris.wall_min;
+  EXPECT_GT(quad_sag, 0);
+  EXPECT_LT(quad_sag, 0.5 * tri_sag);
+}
+
+// As `meshmark compress` runs it: rounds meet the tolerance by the dense measurement.
+TEST(RailQuads, CompressNeedsFewerVerticesForACylinder) {
+  const mm::Mesh part = cylinder(96, 6, 1.0, 0.4, false);
+  mm::CompressOptions with;
+  with.verify = [&part](const mm::Mesh& control) {
+    return mm::decoded_distance(part, control, 3).hausdorff_relative();
+  };
+  mm::CompressOptions without = with;
+  without.rail_quads = false;
+  const mm::CompressResult q = mm::compress(part, with, "cylinder");
+  const mm::CompressResult t = mm::compress(part, without, "cylinder");
+  ASSERT_TRUE(q.tolerance_met);
+  ASSERT_TRUE(t.tolerance_met);
+  EXPECT_LT(q.control.num_vertices(), t.control.num_vertices());
+  // A round's two variants share their vertices; where both met the tolerance, the quads are
+  // closer to the part.
+  int pairs = 0;
+  for (const auto& a : q.candidates)
+    for (const auto& b : q.candidates)
+      if (count_quads(a.control) == 0 && count_quads(b.control) > 0 &&
+          a.control.num_vertices() == b.control.num_vertices()) {
+        ++pairs;
+        EXPECT_LT(b.stats.hausdorff, a.stats.hausdorff);
+      }
+  EXPECT_GT(pairs, 0);
+  for (const auto& c : t.candidates) EXPECT_EQ(count_quads(c.control), 0);
+}
+
+}  // namespace
