@@ -262,6 +262,11 @@ class FixedPatternProduct {
     for (Eigen::Index i = 0; i < A.outerSize(); ++i) {
       for (int k = A.outerIndexPtr()[i]; k < A.outerIndexPtr()[i + 1]; ++k) {
         const double xv = a_value[k];
+        // A zero term adds +-0 to each accumulator, which leaves it as it is: an accumulator
+        // starts at +0 and a sum is -0 only when both operands are, so none ever holds -0.
+        // Most of G's entries are zero (a refined edge gets a value only where a target sample
+        // landed on a triangle next to it), so most of G S is skipped. (B is S or G S: finite.)
+        if (xv == 0) continue;
         const int end = b_outer[a_inner[k] + 1];
         for (int y = start_[static_cast<size_t>(k)]; y < end; ++y) acc_[static_cast<size_t>(b_inner[y])] += xv * b_value[y];
       }
