@@ -173,7 +173,11 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
     // error stays), which helps unevenly: keep going to max_rounds and keep the best.
     // Spend more vertices where the surface is still too far, and a few more overall.
     raise_importance(co.importance, result_error, o.tolerance * best.stats.diagonal);
-    const double grow = std::clamp(std::sqrt(rel / o.tolerance), 1.15, 2.0);
+    // Grown from the smallest error so far: a round worse than an earlier one with fewer
+    // vertices went astray in its decimation, and is no measure of how many more are needed
+    // (flanged_cylinder: 68 vertices at 0.66 %, then 79 at 1.64 % grew to 144).
+    const double grow_rel = std::min(rel, best.stats.hausdorff / best.stats.diagonal);
+    const double grow = std::clamp(std::sqrt(grow_rel / o.tolerance), 1.15, 2.0);
     co.target_vertices = std::min(o.max_vertices, static_cast<int>(std::ceil(co.target_vertices * grow)));
   }
 
