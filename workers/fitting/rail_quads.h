@@ -13,7 +13,8 @@
 namespace mm {
 
 // Merges triangle pairs across a non-crease edge into a quad when two opposite edges of the
-// quad are creases and the two triangles fold by at most `max_fold_degrees`. A triangle joins
+// quad are creases, the two triangles fold by at most `max_fold_degrees`, and the quad is a
+// strip cell (convex, corners of 30-150 degrees, rails within 45 degrees of parallel). A triangle joins
 // at most one quad; candidates are taken flattest first (ties by vertex indices), so the result
 // is deterministic. Vertices, creases and corners are unchanged; other faces are kept as they
 // are. Orientation is kept: the quad follows both triangles' vertex order.
