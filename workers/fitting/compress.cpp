@@ -114,26 +114,13 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
                                    " vertices (corners and crease polylines cannot shrink further), more than "
                                    "twice the control vertex budget of " + std::to_string(o.max_vertices) +
                                    ": no compact control polyhedron");
-    std::vector<FitResult> variants;
-    variants.push_back(fit_control_points(control.mesh, target, fit));
-    // The same polyhedron with its crease-railed strips as quads, whose walls do not sag, fitted
-    // from the triangles' positions. Neither variant wins everywhere (fandisk's rounds stalled at
-    // 0.55 % with quads alone), so each is a candidate.
-    if (o.rail_quads) {
-      Mesh quads = pair_rail_quads(control.mesh);
-      if (quads.num_faces() != control.mesh.num_faces()) {
-        quads.points = variants[0].control.points;
-        variants.push_back(fit_control_points(quads, target, fit));
-      }
-    }
     // The next round refines where the better variant is too far from the part in either
     // direction (region_error: refining only where target vertices are too far left the rounds
     // blind to overshoot between them), and its error sets the growth.
     std::vector<double> result_error;
     double rel = 0;
     const int n = control.mesh.num_vertices();
-    bool fits = false;
-    for (FitResult& variant : variants) {
+    const auto consider = [&](FitResult&& variant) {
       if (result_error.empty() || variant.stats.hausdorff / variant.stats.diagonal < rel) {
         result_error = variant.region_error;
         rel = variant.stats.hausdorff / variant.stats.diagonal;
@@ -154,7 +141,23 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
         have = true;
         best_fits = variant_fits;
       }
-      fits = fits || variant_fits;
+      return variant_fits;
+    };
+    FitResult triangles = fit_control_points(control.mesh, target, fit);
+    const Points fitted = triangles.control.points;
+    bool fits = consider(std::move(triangles));
+    // The same polyhedron with its crease-railed strips as quads, whose walls do not sag, fitted
+    // from the triangles' positions. Neither variant wins everywhere (fandisk's rounds stalled at
+    // 0.55 % with quads alone), so each is a candidate. Not when the triangles met the
+    // tolerance: the quads would only add a candidate of as many vertices, whose stream is
+    // larger (version 3 codes a quad for about twice a triangle's bits), and the next round
+    // is a bisection step that needs no errors to steer.
+    if (o.rail_quads && !fits) {
+      Mesh quads = pair_rail_quads(control.mesh);
+      if (quads.num_faces() != control.mesh.num_faces()) {
+        quads.points = fitted;
+        fits = consider(fit_control_points(quads, target, fit));
+      }
     }
     if (fits) {
       out.tolerance_met = true;
