@@ -42,9 +42,11 @@ struct TriSlot {
     const Eigen::Vector3d nrm = regular ? Eigen::Vector3d(cr / std::sqrt(n2)) : Eigen::Vector3d::Zero();
     for (int k = 0; k < 3; ++k) n[k] = nrm[k];
     d = nrm.dot(a);
+    // Nested pairs, not std::min({...}): the same first-of-equals answer (min_element's), without
+    // the initializer list's loop.
     for (int k = 0; k < 3; ++k) {
-      lo[k] = std::min({v[0][k], v[1][k], v[2][k]});
-      hi[k] = std::max({v[0][k], v[1][k], v[2][k]});
+      lo[k] = std::min(std::min(v[0][k], v[1][k]), v[2][k]);
+      hi[k] = std::max(std::max(v[0][k], v[1][k]), v[2][k]);
     }
   }
 
@@ -86,13 +88,18 @@ struct SegSlot {
   static constexpr int kVertices = 2;
   double v[2][3];
   double e[3], inv_len2;
+  double lo[3], hi[3];  // bounding box
   int id;
   bool regular;  // non-zero length
 
   void fill(const Points& points, const std::array<int, 2>& s) {
     for (int j = 0; j < 2; ++j)
       for (int k = 0; k < 3; ++k) v[j][k] = points(s[static_cast<size_t>(j)], k);
-    for (int k = 0; k < 3; ++k) e[k] = v[1][k] - v[0][k];
+    for (int k = 0; k < 3; ++k) {
+      e[k] = v[1][k] - v[0][k];
+      lo[k] = std::min(v[0][k], v[1][k]);
+      hi[k] = std::max(v[0][k], v[1][k]);
+    }
     const double len2 = dot3(e, e);
     regular = len2 > 0 && std::isfinite(len2);
     inv_len2 = regular ? 1.0 / len2 : 0.0;
@@ -166,12 +173,13 @@ class Tree {
           nd.lo[k] = std::numeric_limits<double>::infinity();
           nd.hi[k] = -std::numeric_limits<double>::infinity();
         }
+        // From the slots' boxes: the same values as over their vertices one by one (min and
+        // max are exact, and both keep the first of equal values in the same order).
         for (int j = nd.first; j < nd.first + nd.count; ++j)
-          for (int m = 0; m < N; ++m)
-            for (int k = 0; k < 3; ++k) {
-              nd.lo[k] = std::min(nd.lo[k], slots_[static_cast<size_t>(j)].v[m][k]);
-              nd.hi[k] = std::max(nd.hi[k], slots_[static_cast<size_t>(j)].v[m][k]);
-            }
+          for (int k = 0; k < 3; ++k) {
+            nd.lo[k] = std::min(nd.lo[k], slots_[static_cast<size_t>(j)].lo[k]);
+            nd.hi[k] = std::max(nd.hi[k], slots_[static_cast<size_t>(j)].hi[k]);
+          }
       } else {
         const Node& l = nodes_[i + 1];
         const Node& r = nodes_[static_cast<size_t>(nd.first)];

@@ -324,7 +324,7 @@ class ModSliverGuardT : public OpenMesh::Decimater::ModBaseT<MeshT> {
   // d1 = |b - c|^2.
   static double aspect(const OpenMesh::Vec3d& a, const OpenMesh::Vec3d& b, const OpenMesh::Vec3d& c, double d1) {
     const OpenMesh::Vec3d d0 = a - b, d2 = c - a;
-    const double l2 = std::max({d0.sqrnorm(), d1, d2.sqrnorm()});
+    const double l2 = std::max(std::max(d0.sqrnorm(), d1), d2.sqrnorm());  // max({...})'s answer, no loop
     const double a2 = (d0 % d2).norm();
     return a2 > 0 ? l2 / a2 : DBL_MAX;
   }
