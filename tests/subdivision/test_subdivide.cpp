@@ -3,6 +3,7 @@
 // smoothing, and clean rejection of bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 
@@ -242,6 +243,44 @@ TEST(Subdivision, CreasesAndCornersAreCarried) {
   EXPECT_EQ(r.creases.size(), 8u);
   EXPECT_EQ(r.corners, (std::vector<int>{0, 3}));
   for (const auto& [a, b] : r.creases) EXPECT_LT(a, b);
+}
+
+// The fit's entry point: the same S as build_subdivision, and the refined mesh's faces (fanned),
+// creases and boundary edges as flat lists. An open mixed mesh with a pentagon and creases.
+TEST(Subdivision, OperatorWithFlatTopologyMatchesBuildSubdivision) {
+  Mesh open_house = mixed_house();  // the cube's top replaced by a pyramid; then its bottom removed
+  open_house.faces.erase(open_house.faces.begin());
+  open_house.creases = {{4, 5}, {5, 8}};
+  Mesh pentagon = make_mesh({{0, 0, 0}, {2, 0, 0}, {3, 1, 0}, {1, 2, 0}, {-1, 1, 0}, {1, 1, 1}},
+                            {{0, 1, 2, 3, 4}, {0, 5, 1}, {1, 5, 2}, {2, 5, 3}, {3, 5, 4}, {4, 5, 0}});
+  pentagon.creases = {{0, 1}};
+  const std::vector<Mesh> meshes{open_house, pentagon, cube()};
+  for (size_t i = 0; i < meshes.size(); ++i)
+    for (int level = 0; level <= 3; ++level) {
+      const Mesh& m = meshes[i];
+      RefinedTopology t;
+      const SparseOperator S = subdivision_operator(m, level, t);
+      const SubdivisionOperator op = build_subdivision(m, level);
+      ASSERT_EQ(S.rows(), op.S.rows()) << "level " << level;
+      ASSERT_EQ(S.nonZeros(), op.S.nonZeros());
+      EXPECT_TRUE(std::equal(S.outerIndexPtr(), S.outerIndexPtr() + S.rows() + 1, op.S.outerIndexPtr()));
+      EXPECT_TRUE(std::equal(S.innerIndexPtr(), S.innerIndexPtr() + S.nonZeros(), op.S.innerIndexPtr()));
+      EXPECT_TRUE(std::equal(S.valuePtr(), S.valuePtr() + S.nonZeros(), op.S.valuePtr()));
+      std::vector<std::array<int, 3>> fans;
+      std::map<std::pair<int, int>, int> uses;
+      for (const auto& f : op.refined.faces) {
+        for (size_t k = 1; k + 1 < f.size(); ++k) fans.push_back({f[0], f[k], f[k + 1]});
+        for (size_t k = 0; k < f.size(); ++k) ++uses[{std::min(f[k], f[(k + 1) % f.size()]), std::max(f[k], f[(k + 1) % f.size()])}];
+      }
+      EXPECT_EQ(t.triangles, fans);
+      EXPECT_EQ(t.creases, op.refined.creases);
+      std::vector<std::pair<int, int>> boundary;
+      for (const auto& [e, n] : uses)
+        if (n == 1) boundary.push_back(e);
+      std::sort(t.boundary.begin(), t.boundary.end());
+      EXPECT_EQ(t.boundary, boundary);
+      if (i == 0) EXPECT_FALSE(boundary.empty()) << "the open mesh has a boundary at level " << level;
+    }
 }
 
 TEST(Subdivision, NonManifoldVertexIsKeptFixed) {

@@ -523,12 +523,19 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   if (tg.options.seed != o.seed || tg.options.area_samples != o.area_samples ||
       tg.options.max_vertex_samples != o.max_vertex_samples)
     throw std::invalid_argument("fit target was prepared with other sampling options");
-  const auto op = build_subdivision(control, o.levels);
-  const auto refined_creases = crease_edges(op.refined, boundary_edges(control).empty());
-  const auto refined_tris = triangle_list(op.refined);
+  // S and the refined topology as flat lists (the refined points are R below).
+  RefinedTopology refined;
+  const SpMat S = subdivision_operator(control, o.levels, refined);
+  // Tagged creases and, on an open control mesh, the refined boundary (crease_edges()).
+  std::vector<std::pair<int, int>> refined_creases = std::move(refined.creases);
+  if (!boundary_edges(control).empty())
+    refined_creases.insert(refined_creases.end(), refined.boundary.begin(), refined.boundary.end());
+  std::sort(refined_creases.begin(), refined_creases.end());
+  refined_creases.erase(std::unique(refined_creases.begin(), refined_creases.end()), refined_creases.end());
+  const std::vector<std::array<int, 3>> refined_tris = std::move(refined.triangles);
   const TriangleBvh& target_tris = tg.tris;
   // The refined surface keeps its triangles while it moves: one tree per fit, refitted.
-  const Points R0 = times3(op.S, control.points);
+  const Points R0 = times3(S, control.points);
   TriangleBvh surf(R0, refined_tris);
   SegmentBvh crease(R0, refined_creases);
   const SegmentBvh& target_creases = tg.creases;
@@ -543,24 +550,24 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   const SpMat LtL = SpMat(Eigen::SparseMatrix<double>(L.transpose()) * Eigen::SparseMatrix<double>(L));
 
   const int n = control.num_vertices();
-  const SpMat St = op.S.transpose();
-  RefinedNormalEquations normal(static_cast<int>(op.S.rows()), refined_tris, refined_creases);
+  const SpMat St = S.transpose();
+  RefinedNormalEquations normal(static_cast<int>(S.rows()), refined_tris, refined_creases);
   // The solver reads the upper triangle of the row-major M = S^T G S (its arrays are handed
   // over as the column-major lower triangle, below): row i from column i on, which needs row r
   // of G S only from the first control vertex in S's row r on.
-  std::vector<int> diagonal_on(static_cast<size_t>(n)), support_on(static_cast<size_t>(op.S.rows()));
+  std::vector<int> diagonal_on(static_cast<size_t>(n)), support_on(static_cast<size_t>(S.rows()));
   for (int i = 0; i < n; ++i) diagonal_on[static_cast<size_t>(i)] = i;
-  for (Eigen::Index r = 0; r < op.S.rows(); ++r)
-    support_on[static_cast<size_t>(r)] = op.S.outerIndexPtr()[r] < op.S.outerIndexPtr()[r + 1]
-                                             ? op.S.innerIndexPtr()[op.S.outerIndexPtr()[r]]
+  for (Eigen::Index r = 0; r < S.rows(); ++r)
+    support_on[static_cast<size_t>(r)] = S.outerIndexPtr()[r] < S.outerIndexPtr()[r + 1]
+                                             ? S.innerIndexPtr()[S.outerIndexPtr()[r]]
                                              : n;
-  FixedPatternProduct GS(normal.G, op.S, std::move(support_on)), StGS(St, GS.C, std::move(diagonal_on));
+  FixedPatternProduct GS(normal.G, S, std::move(support_on)), StGS(St, GS.C, std::move(diagonal_on));
   RegularisedSystem system(StGS.C, LtL);
   Eigen::MatrixXd X = control.points;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
   std::vector<int> analyzed_outer, analyzed_inner;  // the pattern the solver was analysed for
   for (int it = 0; it < o.iterations; ++it) {
-    Points R = it == 0 ? R0 : times3(op.S, X);  // X is still control.points in the first
+    Points R = it == 0 ? R0 : times3(S, X);  // X is still control.points in the first
     if (it > 0) {
       surf.refit(R);
       crease.refit(R);
@@ -569,7 +576,7 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
                         target_creases, o, with_creases, &hints, &normal);
     const double scale = c.weight_sum / n;  // data weight per control vertex
     // A tiny pull towards the current positions (1e-6 I) keeps vertices without data well-posed.
-    const SpMat& M = system(StGS(St, GS(normal.G, op.S)), LtL, o.smoothness * scale, (1e-6 * scale) * 1.0);
+    const SpMat& M = system(StGS(St, GS(normal.G, S)), LtL, o.smoothness * scale, (1e-6 * scale) * 1.0);
     Eigen::MatrixXd rhs = times3(St, normal.Y) + (1e-6 * scale) * X;
     // M's row-major arrays read as column-major are its transpose, whose lower triangle (all
     // the solver reads) is M's upper triangle, all that was computed of S^T G S.
@@ -595,7 +602,7 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   FitResult out;
   out.control = control;
   out.control.points = X;
-  Points R = times3(op.S, X);
+  Points R = times3(S, X);
   // The last iteration's answers start the final queries. Target vertices left out of the
   // strided subset get none: a neighbour in index order may lie far away on the part, and a far
   // hint costs more than the kd-tree's.
@@ -633,10 +640,10 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
   out.stats = stats_of(c.surface_dist, tg.diagonal);
   // Blame each distance on the control vertex with the largest weight in the refined vertex's row.
   out.vertex_error.assign(n, 0.0);
-  std::vector<int> owner(op.S.rows(), -1);
-  for (int r = 0; r < op.S.rows(); ++r) {
+  std::vector<int> owner(S.rows(), -1);
+  for (int r = 0; r < S.rows(); ++r) {
     double best = -1;
-    for (SpMat::InnerIterator itr(op.S, r); itr; ++itr)
+    for (SpMat::InnerIterator itr(S, r); itr; ++itr)
       if (itr.value() > best) best = itr.value(), owner[r] = static_cast<int>(itr.col());
   }
   for (int r = 0; r < c.rows; ++r)

@@ -541,8 +541,29 @@ struct Steps {
   Mesh refined;  // topology only
 };
 
+// The final level as flat lists (what to_mesh gives, fanned, plus its boundary edges).
+void fill_topology(const Level& L, RefinedTopology& t) {
+  t.triangles.clear();
+  t.creases.clear();
+  t.boundary.clear();
+  t.triangles.reserve(L.fverts.size() - 2 * static_cast<size_t>(L.nf()));
+  for (int f = 0; f < L.nf(); ++f) {
+    const int* v = &L.fverts[static_cast<size_t>(L.foff[f])];
+    for (int k = 1; k + 1 < L.fsize(f); ++k) t.triangles.push_back({v[0], v[k], v[k + 1]});
+  }
+  std::vector<int> uses(static_cast<size_t>(L.ne()), 0);
+  for (int e : L.fedges) ++uses[static_cast<size_t>(e)];
+  for (int e = 0; e < L.ne(); ++e) {
+    const auto& ev = L.everts[static_cast<size_t>(e)];
+    const std::pair<int, int> edge(std::min(ev[0], ev[1]), std::max(ev[0], ev[1]));
+    if (L.ecrease[static_cast<size_t>(e)]) t.creases.push_back(edge);
+    if (uses[static_cast<size_t>(e)] == 1) t.boundary.push_back(edge);
+  }
+}
+
 // With `points`, refines those points level by level instead of building the step matrices.
-Steps build_steps(const Mesh& control, int levels, Points* points) {
+// With `topology`, the final level goes there instead of into a Mesh.
+Steps build_steps(const Mesh& control, int levels, Points* points, RefinedTopology* topology = nullptr) {
   if (levels < 0 || levels > kMaxSubdivisionLevels)
     throw std::invalid_argument("subdivision levels must be in [0, " +
                                 std::to_string(kMaxSubdivisionLevels) + "], got " +
@@ -579,7 +600,10 @@ Steps build_steps(const Mesh& control, int levels, Points* points) {
     }
     L = child_level(L, fpoint, nfp);
   }
-  out.refined = to_mesh(L, corners);
+  if (topology)
+    fill_topology(L, *topology);
+  else
+    out.refined = to_mesh(L, corners);
   return out;
 }
 
@@ -591,17 +615,29 @@ Points apply_steps(const std::vector<SparseOperator>& steps, const Points& p0) {
 
 }  // namespace
 
+namespace {
+
+SparseOperator composed(const std::vector<SparseOperator>& steps, int n) {
+  SparseOperator S(n, n);
+  S.setIdentity();
+  for (size_t k = 0; k < steps.size(); ++k) S = k == 0 ? steps[0] : compose(steps[k], S);
+  return S;
+}
+
+}  // namespace
+
 SubdivisionOperator build_subdivision(const Mesh& control, int levels) {
   Steps st = build_steps(control, levels, nullptr);
   SubdivisionOperator op;
-  const int n = control.num_vertices();
-  op.S.resize(n, n);
-  op.S.setIdentity();
-  for (size_t k = 0; k < st.steps.size(); ++k) op.S = k == 0 ? st.steps[0] : compose(st.steps[k], op.S);
+  op.S = composed(st.steps, control.num_vertices());
   op.refined = std::move(st.refined);
   op.refined.points = apply_steps(st.steps, control.points);
   op.steps = std::move(st.steps);
   return op;
+}
+
+SparseOperator subdivision_operator(const Mesh& control, int levels, RefinedTopology& topology) {
+  return composed(build_steps(control, levels, nullptr, &topology).steps, control.num_vertices());
 }
 
 std::vector<long long> subdivision_vertex_counts(const Mesh& control, int levels) {

@@ -12,6 +12,8 @@
 // rejected with mm::InputError; non-manifold vertices (several fans) are kept fixed as corners.
 #pragma once
 #include <Eigen/Sparse>
+#include <array>
+#include <utility>
 #include <vector>
 
 #include "meshio/mesh.h"
@@ -39,6 +41,18 @@ constexpr long long kMaxOperatorTerms = 100'000'000;  // products summed while c
 // std::invalid_argument for levels outside [0, kMaxSubdivisionLevels] or a too large result
 // (refined vertices, or terms while composing S around very high-valence vertices).
 SubdivisionOperator build_subdivision(const Mesh& control, int levels);
+
+// The refined topology as flat lists, for a caller that positions the refined vertices itself
+// (the fit): no per-face vectors, no refined points.
+struct RefinedTopology {
+  std::vector<std::array<int, 3>> triangles;  // faces fanned from their first corner, in face order
+  std::vector<std::pair<int, int>> creases;   // as SubdivisionOperator::refined.creases
+  std::vector<std::pair<int, int>> boundary;  // edges of one face only, (min, max), in edge order
+};
+
+// S of build_subdivision(control, levels) (the same matrix) and the refined topology, without
+// the refined Mesh, its points and the steps. Same errors.
+SparseOperator subdivision_operator(const Mesh& control, int levels, RefinedTopology& topology);
 
 // Vertex counts of levels 0..levels (element L: rows of build_subdivision(control, L).S) from
 // the topology alone, without building anything: a caller can tell which level a mesh could be
