@@ -183,10 +183,10 @@ class RefinedNormalEquations {
   std::vector<std::array<int, 9>> tri_slots;      // per refined triangle: G slots of its 3 x 3 pairs
   std::vector<std::array<int, 4>> segment_slots;  // per refined crease edge: its 2 x 2 pairs
   std::vector<std::array<int, 1>> vertex_slots;   // per refined vertex: its diagonal slot
-  void clear() {
-    std::fill(G.valuePtr(), G.valuePtr() + G.nonZeros(), 0.0);
-    Y.setZero();
-  }
+  // G is not cleared here: the product that reads it leaves it zero (FixedPatternProduct::
+  // consume), which touches only its non-zero entries, a few of them, where filling all of G
+  // with zeros was a memset of the refined mesh's edges every iteration.
+  void clear() { Y.setZero(); }
   // `slots`: G slots of the terms' pairs (tri_slots, segment_slots or vertex_slots).
   template <size_t N>
   void add(const std::array<std::pair<int, double>, N>& terms, const std::array<int, N * N>& slots,
@@ -253,12 +253,19 @@ class FixedPatternProduct {
     std::copy(inner.begin(), inner.end(), C.innerIndexPtr());
     std::fill(C.valuePtr(), C.valuePtr() + C.nonZeros(), 0.0);
   }
-  const SpMat& operator()(const SpMat& A, const SpMat& B) {
+  const SpMat& operator()(const SpMat& A, const SpMat& B) { return multiply<false>(A, A.valuePtr(), B); }
+  // The same product, leaving A's values all zero (each non-zero one is cleared once read): for
+  // a left factor accumulated afresh before every product (G).
+  const SpMat& consume(SpMat& A, const SpMat& B) { return multiply<true>(A, A.valuePtr(), B); }
+  SpMat C;
+
+ private:
+  template <bool kConsume, class Value>
+  const SpMat& multiply(const SpMat& A, Value* a_value, const SpMat& B) {
     const int* b_outer = B.outerIndexPtr();
     const int* b_inner = B.innerIndexPtr();
     const double* b_value = B.valuePtr();
     const int* a_inner = A.innerIndexPtr();
-    const double* a_value = A.valuePtr();
     for (Eigen::Index i = 0; i < A.outerSize(); ++i) {
       for (int k = A.outerIndexPtr()[i]; k < A.outerIndexPtr()[i + 1]; ++k) {
         const double xv = a_value[k];
@@ -267,6 +274,7 @@ class FixedPatternProduct {
         // Most of G's entries are zero (a refined edge gets a value only where a target sample
         // landed on a triangle next to it), so most of G S is skipped. (B is S or G S: finite.)
         if (xv == 0) continue;
+        if constexpr (kConsume) a_value[k] = 0;
         const int end = b_outer[a_inner[k] + 1];
         for (int y = start_[static_cast<size_t>(k)]; y < end; ++y) acc_[static_cast<size_t>(b_inner[y])] += xv * b_value[y];
       }
@@ -278,9 +286,7 @@ class FixedPatternProduct {
     }
     return C;
   }
-  SpMat C;
 
- private:
   std::vector<double> acc_;
   std::vector<int> first_col_;
   std::vector<int> start_;  // per term of A: index in B's arrays of the first term used
@@ -576,7 +582,7 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
                         target_creases, o, with_creases, &hints, &normal);
     const double scale = c.weight_sum / n;  // data weight per control vertex
     // A tiny pull towards the current positions (1e-6 I) keeps vertices without data well-posed.
-    const SpMat& M = system(StGS(St, GS(normal.G, S)), LtL, o.smoothness * scale, (1e-6 * scale) * 1.0);
+    const SpMat& M = system(StGS(St, GS.consume(normal.G, S)), LtL, o.smoothness * scale, (1e-6 * scale) * 1.0);
     Eigen::MatrixXd rhs = times3(St, normal.Y) + (1e-6 * scale) * X;
     // M's row-major arrays read as column-major are its transpose, whose lower triangle (all
     // the solver reads) is M's upper triangle, all that was computed of S^T G S.
