@@ -94,6 +94,10 @@ void add_compress_commands(CLI::App& app) {
         ->check(CLI::Range(1e-6, 0.5));
     c->add_flag("!--no-snap", a->snap,
                 "keep every coordinate on its nearest grid value (no rate-distortion snapping)");
+    c->add_option("--seed", a->o.seed,
+                  "sampling seed of the fit (each seed is deterministic; the vertex count that meets "
+                  "the tolerance varies with it)")
+        ->capture_default_str();
     c->add_flag("!--no-quads", a->o.rail_quads,
                 "fit triangles only (no quads on strips between two creases; faster, often larger)");
     c->add_flag("--json", a->json, "print the summary as JSON");
@@ -154,6 +158,7 @@ void add_compress_commands(CLI::App& app) {
                        {"rms_tolerance", a->rms_tolerance > 0 ? nlohmann::json(a->rms_tolerance) : nlohmann::json()},
                        {"rms_tolerance_met", a->rms_tolerance <= 0 || d.rms_relative() <= a->rms_tolerance},
                        {"rounds", r.rounds},
+                       {"seed", a->o.seed},
                        {"seconds", seconds},
                        {"verify_seconds", verify_seconds},
                        {"bits_seconds", select_seconds},

@@ -189,6 +189,21 @@ TEST(Compress, Deterministic) {
 // A caller's own measurement (CompressOptions::verify) decides whether a round meets the
 // tolerance: one that rejects everything leaves the tolerance unmet after every round, one that
 // accepts everything changes nothing.
+// The seed is the fit's sampling: honoured, and deterministic per seed.
+TEST(Compress, SeedIsHonouredAndDeterministic) {
+  MM_REQUIRE_SHARED_MESHES();
+  auto m = mm::read_mesh(mm::test::shared_mesh("abc7.stl"));
+  mm::CompressOptions o;
+  o.max_rounds = 1;
+  const auto first = mm::compress(m, o);
+  o.seed = 2;
+  const auto second = mm::compress(m, o), again = mm::compress(m, o);
+  EXPECT_TRUE(second.control.points == again.control.points);
+  EXPECT_EQ(second.control.faces, again.control.faces);
+  ASSERT_EQ(first.control.num_vertices(), second.control.num_vertices());  // one round: same decimation
+  EXPECT_FALSE(first.control.points == second.control.points);
+}
+
 TEST(Compress, VerifyHasTheLastWord) {
   MM_REQUIRE_SHARED_MESHES();
   auto m = mm::read_mesh(mm::test::shared_mesh("abc7.stl"));

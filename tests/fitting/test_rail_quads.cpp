@@ -184,8 +184,11 @@ TEST(RailQuads, CompressNeedsFewerVerticesForACylinder) {
   for (const auto& c : q.candidates) {
     if (count_quads(c.control) == 0) continue;
     ++with_quads;
-    for (const auto& d : q.candidates)
-      if (count_quads(d.control) == 0) EXPECT_NE(d.control.num_vertices(), c.control.num_vertices());
+    for (const auto& d : q.candidates) {
+      if (count_quads(d.control) == 0) {
+        EXPECT_NE(d.control.num_vertices(), c.control.num_vertices());
+      }
+    }
   }
   EXPECT_GT(with_quads, 0);
   for (const auto& c : t.candidates) EXPECT_EQ(count_quads(c.control), 0);

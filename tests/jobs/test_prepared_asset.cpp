@@ -65,7 +65,8 @@ TEST(PreparedAsset, CacheKeyNamesEveryCompressionOption) {
                       +[](PrepareParams& q) { q.compression.max_vertices = 500; },
                       +[](PrepareParams& q) { q.compression.levels = 2; },
                       +[](PrepareParams& q) { q.compression.angle_degrees = 40; },
-                      +[](PrepareParams& q) { q.compression.rail_quads = false; }}) {
+                      +[](PrepareParams& q) { q.compression.rail_quads = false; },
+                      +[](PrepareParams& q) { q.compression.seed = 2; }}) {
     PrepareParams q;
     change(q);
     EXPECT_NE(q.key(), k);

@@ -4,6 +4,7 @@
 // spend more control vertices there and fit again, until the tolerance or the vertex budget is
 // reached. Deterministic: the same input and options give the same control mesh.
 #pragma once
+#include <cstdint>
 #include <functional>
 
 #include "fitting/fit_control_points.h"
@@ -21,6 +22,9 @@ struct CompressOptions {
   // Also fit each round's polyhedron with its crease-railed strips paired into quads
   // (fitting/rail_quads.h); both are candidates. Costs a second fit per round.
   bool rail_quads = true;
+  // The fit's sampling seed. Each seed gives its own deterministic result; which vertex count
+  // meets the tolerance varies with it by 10-20 %, so benchmarks compare over several.
+  std::uint64_t seed = 1;
   // Optional: a denser measurement of a candidate control mesh (the part's units, creases and
   // corners tagged): its symmetric Hausdorff distance relative to the part's bounding-box
   // diagonal. When set, a round meets the tolerance only if this measurement does too (the fit's
