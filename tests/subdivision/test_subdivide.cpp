@@ -279,7 +279,9 @@ TEST(Subdivision, OperatorWithFlatTopologyMatchesBuildSubdivision) {
         if (n == 1) boundary.push_back(e);
       std::sort(t.boundary.begin(), t.boundary.end());
       EXPECT_EQ(t.boundary, boundary);
-      if (i == 0) EXPECT_FALSE(boundary.empty()) << "the open mesh has a boundary at level " << level;
+      if (i == 0) {
+        EXPECT_FALSE(boundary.empty()) << "the open mesh has a boundary at level " << level;
+      }
     }
 }
 
