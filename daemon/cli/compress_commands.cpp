@@ -86,7 +86,7 @@ void add_compress_commands(CLI::App& app) {
     c->add_option("--bits", a->bits,
                   "quantisation bits per coordinate (default: the fewest, from 8 up, whose decoded "
                   "surface meets the tolerance; at most the bits whose rounding error stays below a "
-                  "fifth of the tolerance)")
+                  "fifth of the tolerance, more only for a polyhedron that meets it by a hair)")
         ->check(CLI::Range(kMinQuantBits, kMaxQuantBits));
     c->add_option("--rms-tolerance", a->rms_tolerance,
                   "also bound the RMS distance (relative to the diagonal) when choosing the bits: "

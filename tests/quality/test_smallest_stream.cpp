@@ -67,6 +67,25 @@ TEST(SmallestStream, NothingMeetsGivesTheFirstAtItsConservativeBits) {
   EXPECT_THROW(mm::smallest_stream(f.part, {}, search_for(f), "t"), std::invalid_argument);
 }
 
+// A polyhedron within the tolerance by a hair misses it at its conservative bits; finer grids
+// are tried rather than writing a stream off the tolerance.
+TEST(SmallestStream, ABarelyFittingPolyhedronGetsFinerBitsRatherThanMissing) {
+  const Fixture& f = block();
+  mm::StreamSearch search = search_for(f);
+  const double exact = mm::decoded_distance(f.part, f.fit.control, f.fit.levels).hausdorff_relative();
+  search.tolerance = exact * 1.0002;
+  const int bound = mm::conservative_bits(f.fit.control, search.tolerance);
+  mm::CodecParams at_bound;
+  at_bound.quant_bits = bound;
+  const mm::Mesh coarse = mm::decode(mm::encode(f.fit.control, at_bound), "t").mesh;
+  ASSERT_GT(mm::decoded_distance(f.part, coarse, f.fit.levels).hausdorff_relative(), search.tolerance)
+      << "the conservative bits must miss for this test to mean anything";
+  const mm::ChosenStream s = mm::smallest_stream(f.part, {&f.fit.control}, search, "t");
+  EXPECT_TRUE(s.meets);
+  EXPECT_GT(s.bits, bound);
+  EXPECT_LE(measured(f, s).hausdorff_relative(), search.tolerance);
+}
+
 // Given bits are used as they are, unsnapped: the bytes are the plain encoding at those bits.
 // Without them the search goes no higher than the conservative bits, and snapping never makes
 // the stream larger than the plain one it starts from.
