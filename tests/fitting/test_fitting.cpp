@@ -186,9 +186,6 @@ TEST(Compress, Deterministic) {
   EXPECT_TRUE(a.control.points == b.control.points);
 }
 
-// A caller's own measurement (CompressOptions::verify) decides whether a round meets the
-// tolerance: one that rejects everything leaves the tolerance unmet after every round, one that
-// accepts everything changes nothing.
 // The seed is the fit's sampling: honoured, and deterministic per seed.
 TEST(Compress, SeedIsHonouredAndDeterministic) {
   MM_REQUIRE_SHARED_MESHES();
@@ -204,6 +201,9 @@ TEST(Compress, SeedIsHonouredAndDeterministic) {
   EXPECT_FALSE(first.control.points == second.control.points);
 }
 
+// A caller's own measurement (CompressOptions::verify) decides whether a round meets the
+// tolerance: one that rejects everything leaves the tolerance unmet after every round, one that
+// accepts everything changes nothing.
 TEST(Compress, VerifyHasTheLastWord) {
   MM_REQUIRE_SHARED_MESHES();
   auto m = mm::read_mesh(mm::test::shared_mesh("abc7.stl"));
