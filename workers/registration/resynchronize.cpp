@@ -446,6 +446,11 @@ Matching match_vertices(const LevelData& level, const Points& suspect, const Res
   return m;
 }
 
+// How much smaller the unmoved pairing's residual must be to replace the aligned one, unless it
+// explains the suspect exactly (to float precision, relative to the diagonal: STL files store
+// float coordinates), when a similarity could only take in part of the mark.
+constexpr double kClearlyBetter = 0.5, kExact = 1e-7;
+
 Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h, const Points& suspect,
                              Matching m, int rounds) {
   const LevelData& level = *h.level;
@@ -465,11 +470,11 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h
     if (round > 0) {
       // The mark moves refined vertices by a fair fraction of their spacing, so pairs made with
       // the original refined vertices miss or swap some; pair again with the estimate S x until
-      // the pairs stop growing.
+      // the pairs stop changing (a swap put right leaves the count as it was) or shrink.
       const Points estimate = h.apply(r.points);
       Matching next = m;
       mutual_pairs(estimate, PointGrid(estimate), suspect, &next);
-      if (next.matched <= previous) break;
+      if (next.matched < previous || next.suspect_of == m.suspect_of) break;
       m = std::move(next);
     }
     previous = m.matched;
@@ -686,9 +691,34 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
     const double nr = static_cast<double>(ctx.vertex_counts[static_cast<size_t>(l)]);
     if (std::abs(ns - nr) > o.count_tolerance * nr) continue;
     const LevelData& level = ctx.level(l);
-    const Matching m = match_vertices(level, suspect.points, o);
+    Matching m = match_vertices(level, suspect.points, o);
     if (m.matched < o.min_matched_fraction * nr) continue;
     Resynchronized r = from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m, o.matching_rounds);
+    // A copy that was only renumbered (welded STL, re-export) is already in the original's
+    // frame, and a similarity fitted to its pairs with the original's vertices takes in the
+    // mark's lowest frequencies (fandisk: scale 0.998, residual 3.7e-4 of the diagonal, p 1e-30
+    // against 1e-94 in order). Pair it unmoved too: it wins when it pairs as many vertices and
+    // explains them clearly better (unmoved fandisk: residual 4e-9), and then keeps the
+    // original's frame, as an in-order copy whose similarity is within the mark does (no
+    // refine_alignment). Merely smaller is not enough: where neither pairing is exact
+    // (fandisk_quads at 3a85671: 3.0e-4 unmoved, 4.4e-4 aligned) the aligned one recovered more
+    // of the mark (p 1e-51 against 2e-31).
+    bool unmoved = false;
+    if (o.align) {
+      ResyncOptions same_frame = o;
+      same_frame.align = false;
+      Matching m0 = match_vertices(level, suspect.points, same_frame);
+      if (m0.matched >= o.min_matched_fraction * nr) {
+        Resynchronized r0 =
+            from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m0, o.matching_rounds);
+        if (r0.matched_fraction >= r.matched_fraction &&
+            (r0.residual_rms < kClearlyBetter * r.residual_rms || r0.residual_rms <= kExact)) {
+          r = std::move(r0);
+          m = std::move(m0);
+          unmoved = true;
+        }
+      }
+    }
     if (level.has_smooth && o.consider_resubdivision) {
       // Re-subdividing a decoded file numbers its edge points by that file's own edge order, so
       // this leak arrives here rather than in the same-numbering branch. Same test as there; a
@@ -697,7 +727,7 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
                                          suspect.points, m, o.matching_rounds);
       if (alt.matched_fraction >= r.matched_fraction && alt.residual_rms < r.residual_rms) r = std::move(alt);
     }
-    refine_alignment(ctx, o, &r);
+    if (!unmoved) refine_alignment(ctx, o, &r);
     if (l == 0) r.residual_rms = rms_rows(r.points, ctx.control.points) / ctx.diagonal;
     return r;
   }
