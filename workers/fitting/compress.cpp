@@ -122,11 +122,12 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
     double rel = 0;
     const int n = control.mesh.num_vertices();
     const auto consider = [&](FitResult&& variant) {
-      if (result_error.empty() || variant.stats.hausdorff / variant.stats.diagonal < rel) {
+      const double error = variant.stats.hausdorff / variant.stats.diagonal;
+      if (result_error.empty() || error < rel) {
         result_error = variant.region_error;
-        rel = variant.stats.hausdorff / variant.stats.diagonal;
+        rel = error;
       }
-      bool variant_fits = variant.stats.hausdorff / variant.stats.diagonal <= o.tolerance;
+      bool variant_fits = error <= o.tolerance;
       // The fit samples its surface at the refined vertices; a caller's denser measurement of the
       // candidate (in the part's units) has the last word.
       if (variant_fits && o.verify) {
