@@ -63,6 +63,13 @@ void expect_oriented(const mm::Mesh& m, bool closed) {
   }
 }
 
+// Per vertex: 1 when it lies on a crease edge (the rims).
+std::vector<char> crease_vertices(const mm::Mesh& m) {
+  std::vector<char> on(static_cast<size_t>(m.num_vertices()), 0);
+  for (auto [a, b] : m.creases) on[static_cast<size_t>(a)] = on[static_cast<size_t>(b)] = 1;
+  return on;
+}
+
 // Radius in the xy plane of the refined vertices strictly between the rims, and of those on them.
 struct Radii {
   double wall_min = 1e300, wall_max = 0, rim_min = 1e300, rim_max = 0;
@@ -70,8 +77,7 @@ struct Radii {
 Radii refined_radii(const mm::Mesh& control, double height) {
   const mm::SubdivisionOperator op = mm::build_subdivision(control, 3);
   const mm::Points p = op.S * control.points;
-  std::vector<char> on_rim(p.rows(), 0);
-  for (auto [a, b] : op.refined.creases) on_rim[a] = on_rim[b] = 1;
+  const std::vector<char> on_rim = crease_vertices(op.refined);
   Radii r;
   for (Eigen::Index i = 0; i < p.rows(); ++i) {
     const double rad = std::hypot(p(i, 0), p(i, 1)), z = p(i, 2);
@@ -138,8 +144,7 @@ TEST(RailQuads, QuadWallIsTheRuledSurfaceBetweenTheRimCurves) {
   ASSERT_EQ(count_quads(quads), 8);
   const mm::SubdivisionOperator op = mm::build_subdivision(quads, 3);
   const mm::Points p = op.S * quads.points;
-  std::vector<char> on_rim(p.rows(), 0);
-  for (auto [a, b] : op.refined.creases) on_rim[a] = on_rim[b] = 1;
+  const std::vector<char> on_rim = crease_vertices(op.refined);
   int wall = 0;
   for (Eigen::Index i = 0; i < p.rows(); ++i) {
     if (on_rim[i] || p(i, 2) < 1e-9 || p(i, 2) > 0.5 - 1e-9) continue;
