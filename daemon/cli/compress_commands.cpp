@@ -70,6 +70,7 @@ void add_compress_commands(CLI::App& app) {
       bool snap = true;
     };
     auto a = std::make_shared<Args>();
+    a->o.coarsen = true;  // the command's job is the smallest stream; protect jobs keep the fast path
     auto* c = app.add_subcommand(
         "compress", "Fit a sharp-featured subdivision control polyhedron to a mesh, write a .mmc stream");
     c->add_option("input", a->in, "mesh file (STL, OBJ, OFF, PLY)")->required();
@@ -100,6 +101,9 @@ void add_compress_commands(CLI::App& app) {
         ->capture_default_str();
     c->add_flag("!--no-quads", a->o.rail_quads,
                 "fit triangles only (no quads on strips between two creases; faster, often larger)");
+    c->add_flag("!--no-coarsen", a->o.coarsen,
+                "keep the refinement rounds' polyhedron (no removal of control vertices after them; "
+                "2-4x faster, streams about 15 % larger)");
     c->add_flag("--json", a->json, "print the summary as JSON");
     c->callback([a] {
       Mesh mesh = read_mesh(a->in);
@@ -158,6 +162,7 @@ void add_compress_commands(CLI::App& app) {
                        {"rms_tolerance", a->rms_tolerance > 0 ? nlohmann::json(a->rms_tolerance) : nlohmann::json()},
                        {"rms_tolerance_met", a->rms_tolerance <= 0 || d.rms_relative() <= a->rms_tolerance},
                        {"rounds", r.rounds},
+                       {"coarsen", a->o.coarsen},
                        {"seed", a->o.seed},
                        {"seconds", seconds},
                        {"verify_seconds", verify_seconds},

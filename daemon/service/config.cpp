@@ -158,12 +158,14 @@ Config parse_config(const std::string& text, const std::string& source, const st
     if (!w.is_object()) {
       c.error("compression", "must be an object");
     } else {
-      c.known(w, "compression.", {"tolerance", "max_vertices", "levels", "angle", "quads", "stream_bits"});
+      c.known(w, "compression.", {"tolerance", "max_vertices", "levels", "angle", "quads", "coarsen",
+                                           "stream_bits"});
       c.number(w, "compression.", "tolerance", cfg.compression.tolerance, 0, 0.5, true);
       c.integer(w, "compression.", "max_vertices", cfg.compression.max_vertices, 8, 6000);
       c.integer(w, "compression.", "levels", cfg.compression.levels, 1, 5);
       c.number(w, "compression.", "angle", cfg.compression.angle_degrees, 0, 180, true);
       c.boolean(w, "compression.", "quads", cfg.compression.rail_quads);
+      c.boolean(w, "compression.", "coarsen", cfg.compression.coarsen);
       c.integer(w, "compression.", "stream_bits", cfg.stream_bits, 12, 24);
     }
   }
@@ -241,6 +243,7 @@ std::map<std::string, std::string> flatten(const Config& c) {
           {"compression.levels", std::to_string(c.compression.levels)},
           {"compression.angle", num(c.compression.angle_degrees)},
           {"compression.quads", c.compression.rail_quads ? "true" : "false"},
+          {"compression.coarsen", c.compression.coarsen ? "true" : "false"},
           {"compression.stream_bits", std::to_string(c.stream_bits)},
           {"detect.p_threshold", num(c.p_threshold)},
           {"detect.max_candidates", std::to_string(c.max_candidates)},

@@ -404,6 +404,7 @@ TEST(CliCompress, WritesTheSmallestStreamOfTheCandidates) {
   // The candidates as compress() gives them to the CLI, each at its fewest bits.
   const mm::Mesh part = mm::read_mesh(in);
   mm::CompressOptions o;
+  o.coarsen = true;  // as `meshmark compress` does unless --no-coarsen
   o.verify = [&](const mm::Mesh& c) { return mm::decoded_distance(part, c, o.levels).hausdorff_relative(); };
   const auto fit = mm::compress(part, o);
   ASSERT_EQ(j["candidates"].get<size_t>(), fit.candidates.size());
@@ -450,4 +451,24 @@ TEST(CliCompress, SnappingMeetsTheToleranceByCompareAndNeverGrows) {
   const json m = json::parse(c.out);
   EXPECT_LE(m["hausdorff"].get<double>(), 0.005);
   EXPECT_NEAR(m["hausdorff"].get<double>(), j["hausdorff"].get<double>(), 1e-12);
+}
+
+// `compress` coarsens by default: on the flanged-cylinder sample it writes a polyhedron with
+// fewer control vertices than `--no-coarsen` does, within the tolerance by `compare`.
+TEST(CliCompress, CoarsensUnlessToldNot) {
+  Scratch s;
+  const std::string part = s / "flanged.off", coarse = s / "coarse.mmc", plain = s / "plain.mmc";
+  ASSERT_EQ(meshmark(s, {"sample", "flanged-cylinder", part}).code, 0);
+  const CliRun r = meshmark(s, {"compress", part, coarse, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const CliRun p = meshmark(s, {"compress", part, plain, "--json", "--no-coarsen"});
+  ASSERT_EQ(p.code, 0) << p.err;
+  const json j = json::parse(r.out), jp = json::parse(p.out);
+  EXPECT_TRUE(j["coarsen"].get<bool>());
+  EXPECT_FALSE(jp["coarsen"].get<bool>());
+  EXPECT_LT(j["control_vertices"].get<int>(), jp["control_vertices"].get<int>());
+  EXPECT_LT(j["stream_bytes"].get<std::size_t>(), jp["stream_bytes"].get<std::size_t>());
+  const CliRun c = meshmark(s, {"compare", part, coarse, "--json"});
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_LE(json::parse(c.out)["hausdorff"].get<double>(), 0.005);
 }

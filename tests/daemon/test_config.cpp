@@ -40,6 +40,7 @@ TEST_F(ConfigTest, MinimalConfigGetsDefaultsAndResolvesRelativePaths) {
   EXPECT_EQ(c.watermark.message_bits, 32);
   EXPECT_EQ(c.context_cache_mb, 512);
   EXPECT_TRUE(c.compression.rail_quads);
+  EXPECT_FALSE(c.compression.coarsen);
   EXPECT_EQ(c.master_key_path(), (dir / "home" / "master.key").string());
 }
 
@@ -50,7 +51,7 @@ TEST_F(ConfigTest, FullConfigParses) {
       "watermark": {"method": "multiplicative", "strength": 0.02, "threshold": 0.1, "message_bits": 48,
                     "max_vertices": 3000},
       "compression": {"tolerance": 0.01, "max_vertices": 400, "levels": 2, "angle": 40, "quads": false,
-                      "stream_bits": 14},
+                      "coarsen": true, "stream_bits": 14},
       "detect": {"p_threshold": 1e-9, "max_candidates": 5, "context_cache_mb": 0}})",
                           "test.json", dir.string(), true);
   EXPECT_EQ(c.workers, 4);
@@ -59,6 +60,7 @@ TEST_F(ConfigTest, FullConfigParses) {
   EXPECT_EQ(c.compression.levels, 2);
   EXPECT_EQ(c.compression.angle_degrees, 40);
   EXPECT_FALSE(c.compression.rail_quads);
+  EXPECT_TRUE(c.compression.coarsen);
   EXPECT_EQ(c.stream_bits, 14);
   EXPECT_EQ(c.watermark.params.method, Method::Multiplicative);
   EXPECT_EQ(c.watermark.message_bits, 48);
@@ -72,11 +74,11 @@ TEST_F(ConfigTest, FullConfigParses) {
 TEST_F(ConfigTest, ReportsEveryProblemWithItsKey) {
   std::string e = expect_error(R"({"home": "home", "drop_dir": 5, "wokers": 2, "workers": "two",
       "watermark": {"strength": 2, "colour": "red"}, "detect": {"p_threshold": 0.5, "context_cache_mb": -1}, "log_level": "loud",
-      "compression": {"quads": "yes"}})");
+      "compression": {"quads": "yes", "coarsen": 1}})");
   for (const char* s : {"test.json", "drop_dir: must be a string", "output_dir: missing", "wokers: unknown key",
                         "workers: must be an integer", "watermark.strength: must be in",
                         "watermark.colour: unknown key", "detect.p_threshold: must be in", "detect.context_cache_mb: must be in [0, 1048576]", "log_level: must be one of",
-                        "compression.quads: must be true or false"})
+                        "compression.quads: must be true or false", "compression.coarsen: must be true or false"})
     EXPECT_NE(e.find(s), std::string::npos) << s << "\n" << e;
 }
 

@@ -66,6 +66,7 @@ TEST(PreparedAsset, CacheKeyNamesEveryCompressionOption) {
                       +[](PrepareParams& q) { q.compression.levels = 2; },
                       +[](PrepareParams& q) { q.compression.angle_degrees = 40; },
                       +[](PrepareParams& q) { q.compression.rail_quads = false; },
+                      +[](PrepareParams& q) { q.compression.coarsen = true; },
                       +[](PrepareParams& q) { q.compression.seed = 2; }}) {
     PrepareParams q;
     change(q);

@@ -103,7 +103,7 @@ std::string PrepareParams::key() const {
   const CompressOptions& c = compression;
   return "prepare-v2;compress;verify=dense;tolerance=" + shortest(c.tolerance) + ";max_vertices=" + std::to_string(c.max_vertices) +
          ";levels=" + std::to_string(c.levels) + ";angle=" + shortest(c.angle_degrees) +
-         ";max_rounds=" + std::to_string(c.max_rounds) + (c.rail_quads ? ";quads=rail" : "") +
+         ";max_rounds=" + std::to_string(c.max_rounds) + (c.rail_quads ? ";quads=rail" : "") + (c.coarsen ? ";coarsen=1" : "") +
          (c.seed != 1 ? ";seed=" + std::to_string(c.seed) : "") +
          ";basis=dense-kirchhoff";
 }
