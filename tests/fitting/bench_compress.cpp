@@ -55,10 +55,13 @@ long long triangles(const mm::Mesh& m) {
   return t;
 }
 
-template <mm::Mesh (*Get)()>
+// With `Coarsen`, as `meshmark compress` runs it (CompressOptions::coarsen): the cost of
+// coarsening is this case against the plain one.
+template <mm::Mesh (*Get)(), bool Coarsen = false>
 void BM_Compress(benchmark::State& state) {
   const mm::Mesh m = Get();
   mm::CompressOptions o;
+  o.coarsen = Coarsen;
   o.max_vertices = static_cast<int>(state.range(0));
   o.tolerance = 0.005;
   mm::CompressResult r;
@@ -123,6 +126,8 @@ void BM_DecompressLevel3(benchmark::State& state) {
 
 BENCHMARK_TEMPLATE(BM_Compress, fandisk)->Name("Compress/fandisk/budget1000")->Arg(1000)->Iterations(2)->Unit(benchmark::kMillisecond);
 BENCHMARK_TEMPLATE(BM_Compress, fandisk)->Name("Compress/fandisk/budget100")->Arg(100)->Iterations(2)->Unit(benchmark::kMillisecond);
+BENCHMARK_TEMPLATE(BM_Compress, fandisk, true)->Name("Compress/fandisk/budget1000/coarsen")->Arg(1000)->Iterations(2)->Unit(benchmark::kMillisecond);
+BENCHMARK_TEMPLATE(BM_Compress, fandisk_pair, true)->Name("Compress/fandisk_pair_26k/budget1000/coarsen")->Arg(1000)->Iterations(2)->Unit(benchmark::kMillisecond);
 BENCHMARK_TEMPLATE(BM_Compress, fandisk_pair)->Name("Compress/fandisk_pair_26k/budget1000")->Arg(1000)->Iterations(2)->Unit(benchmark::kMillisecond);
 BENCHMARK_TEMPLATE(BM_Compress, blade)->Name("Compress/blade/budget1000")->Arg(1000)->Iterations(2)->Unit(benchmark::kMillisecond);
 BENCHMARK_TEMPLATE(BM_Compress, rocker)->Name("Compress/rocker/budget1000")->Arg(1000)->Iterations(2)->Unit(benchmark::kMillisecond);
