@@ -5,6 +5,10 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <set>
+#include <tuple>
+#include <array>
+#include <algorithm>
 
 #include "codec/codec_test_meshes.h"
 #include "codec/stream.h"
@@ -86,17 +90,44 @@ TEST(Stream, RoundTripCopiesQuadsAndComponents) {
   for (auto [a, b] : g.creases) m.creases.emplace_back(a + base, b + base);
   for (int bits : {8, 12, 24}) {
     expect_round_trip(m, bits, "components");
-    mm::Mesh r = m;  // and renumbered as compress numbers its control meshes
-    const auto order = mm::traversal_vertex_order(m);
-    std::vector<int> where(order.size());
-    for (size_t k = 0; k < order.size(); ++k) where[order[k]] = static_cast<int>(k);
-    for (size_t k = 0; k < order.size(); ++k) r.points.row(static_cast<int>(k)) = m.points.row(order[k]);
-    for (auto& f : r.faces)
-      for (int& v : f) v = where[v];
-    for (auto& [a, b] : r.creases) a = where[a], b = where[b];
-    for (int& c : r.corners) c = where[c];
-    expect_round_trip(r, bits, "components renumbered");
+    // and renumbered as compress numbers its control meshes
+    expect_round_trip(mm::in_traversal_order(m), bits, "components renumbered");
   }
+}
+
+// A numbering from any start vertex: the stream's own traversal order (encoding it keeps it),
+// vertex 0 where asked, and the same faces, creases and corners between the same points.
+TEST(Stream, InTraversalOrderFromAnyStartIsTheSameSurface) {
+  mm::Mesh m = mm::test::wavy_grid(7, 5, 2);
+  m.corners = {3, 20};
+  const int n = m.num_vertices();
+  const auto order = mm::traversal_vertex_order(m);
+  const mm::Mesh zero = mm::in_traversal_order(m);
+  for (int k = 0; k < n; ++k) EXPECT_TRUE(zero.points.row(k) == m.points.row(order[k])) << k;
+  const auto as_points = [](const mm::Mesh& x) {
+    const auto p = [&x](int v) { return std::array<double, 3>{x.points(v, 0), x.points(v, 1), x.points(v, 2)}; };
+    std::set<std::vector<std::array<double, 3>>> faces, creases;
+    for (const auto& f : x.faces) {
+      std::vector<std::array<double, 3>> c;
+      for (int v : f) c.push_back(p(v));
+      std::rotate(c.begin(), std::min_element(c.begin(), c.end()), c.end());
+      faces.insert(c);
+    }
+    for (auto [a, b] : x.creases) creases.insert({std::min(p(a), p(b)), std::max(p(a), p(b))});
+    std::set<std::array<double, 3>> corners;
+    for (int c : x.corners) corners.insert(p(c));
+    return std::tuple{faces, creases, corners};
+  };
+  for (int first : {0, 5, 17, n - 1}) {
+    const mm::Mesh r = mm::in_traversal_order(m, first);
+    EXPECT_TRUE(r.points.row(0) == m.points.row(first)) << first;
+    const auto again = mm::traversal_vertex_order(r);
+    for (int k = 0; k < n; ++k) EXPECT_EQ(again[k], k) << first;
+    EXPECT_TRUE(as_points(r) == as_points(m)) << first;
+    EXPECT_TRUE(std::is_sorted(r.creases.begin(), r.creases.end()));
+    EXPECT_TRUE(std::is_sorted(r.corners.begin(), r.corners.end()));
+  }
+  EXPECT_THROW(mm::in_traversal_order(m, n), std::invalid_argument);
 }
 
 TEST(Stream, RoundTripSharedMeshes) {

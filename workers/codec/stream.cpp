@@ -515,4 +515,34 @@ std::vector<int> traversal_vertex_order(const Mesh& mesh) {
   return order;
 }
 
+Mesh in_traversal_order(const Mesh& mesh, int first) {
+  const int n = mesh.num_vertices();
+  if (first < 0 || first >= n) throw std::invalid_argument("in_traversal_order: start vertex out of range");
+  // Swap `first` and 0, then number by the traversal.
+  const auto swapped = [first](int v) { return v == first ? 0 : v == 0 ? first : v; };
+  Mesh start = mesh;
+  for (auto& f : start.faces)
+    for (int& v : f) v = swapped(v);
+  start.points.row(0) = mesh.points.row(first);
+  start.points.row(first) = mesh.points.row(0);
+  const std::vector<int> order = traversal_vertex_order(start);
+  std::vector<int> new_index(order.size());
+  Mesh out;
+  out.points.resize(mesh.points.rows(), 3);
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    new_index[order[k]] = static_cast<int>(k);
+    out.points.row(static_cast<Eigen::Index>(k)) = start.points.row(order[k]);
+  }
+  out.faces = start.faces;
+  for (auto& f : out.faces)
+    for (int& v : f) v = new_index[v];
+  const auto renumbered = [&](int v) { return new_index[swapped(v)]; };
+  for (auto [a, b] : mesh.creases)
+    out.creases.emplace_back(std::min(renumbered(a), renumbered(b)), std::max(renumbered(a), renumbered(b)));
+  std::sort(out.creases.begin(), out.creases.end());
+  for (int c : mesh.corners) out.corners.push_back(renumbered(c));
+  std::sort(out.corners.begin(), out.corners.end());
+  return out;
+}
+
 }  // namespace mm

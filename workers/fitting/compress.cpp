@@ -24,28 +24,6 @@ void validate(const Mesh& mesh, const CompressOptions& o, const std::string& sou
     throw std::invalid_argument("compress: options out of range");
 }
 
-// Vertices renumbered in order of first appearance in the stream's face traversal: the codec
-// keeps vertex order (the watermark lives in it), so the order chosen here is what it codes,
-// and in this order new vertices cost no index and have parallelogram predictions.
-Mesh renumbered_for_stream(const Mesh& m) {
-  const std::vector<int> order = traversal_vertex_order(m);
-  std::vector<int> new_index(order.size());
-  Mesh out;
-  out.points.resize(m.points.rows(), 3);
-  for (size_t k = 0; k < order.size(); ++k) {
-    new_index[order[k]] = static_cast<int>(k);
-    out.points.row(static_cast<Eigen::Index>(k)) = m.points.row(order[k]);
-  }
-  out.faces = m.faces;
-  for (auto& f : out.faces)
-    for (int& v : f) v = new_index[v];
-  for (auto [a, b] : m.creases) out.creases.emplace_back(std::min(new_index[a], new_index[b]), std::max(new_index[a], new_index[b]));
-  std::sort(out.creases.begin(), out.creases.end());
-  for (int c : m.corners) out.corners.push_back(new_index[c]);
-  std::sort(out.corners.begin(), out.corners.end());
-  return out;
-}
-
 // The next decimation keeps more vertices where the surface is still farther than `limit`: the
 // importance multiplies the collapse cost there, by up to 33x (error 4x the limit or more).
 void raise_importance(std::vector<double>& importance, const std::vector<double>& error, double limit) {
@@ -309,7 +287,7 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
     for (double* x : {&s.hausdorff, &s.rms, &s.mean, &s.diagonal}) *x /= out.normalization.scale;
     return s;
   };
-  out.control = renumbered_for_stream(best.control);
+  out.control = in_traversal_order(best.control);
   out.stats = in_part_units(best.stats);
   undo(out.normalization, out.control.points);
   // Fitting rounds by vertex count, the one kept as `control` first (the earliest of equal
@@ -320,7 +298,7 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
   if (best_fits) out.candidates.push_back({out.control, out.stats});
   for (const CompressCandidate& c : fitting) {
     if (c.control.points.rows() == best.control.points.rows() && c.control.points == best.control.points) continue;
-    CompressCandidate p{renumbered_for_stream(c.control), in_part_units(c.stats)};
+    CompressCandidate p{in_traversal_order(c.control), in_part_units(c.stats)};
     undo(out.normalization, p.control.points);
     out.candidates.push_back(std::move(p));
   }

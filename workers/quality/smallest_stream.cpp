@@ -39,6 +39,8 @@ constexpr std::uint8_t kMaxSnapCells = 8;
 // How far over the tolerance a polyhedron may be at its conservative bits to be tried on finer
 // grids (quantisation error shrinks with the bits; a polyhedron far off does not come back).
 constexpr double kCloseToTolerance = 1.1;
+// Start vertices tried for the chosen polyhedron's numbering (evenly spaced in its numbering).
+constexpr int kStarts = 64;
 
 SnapCandidate snap_search(const Mesh& part, const Mesh& control, int levels, CodecParams params, double tolerance,
                           std::size_t smaller_than, const std::function<bool(const SurfaceDistance&)>& meets,
@@ -85,6 +87,28 @@ SnapCandidate snap_search(const Mesh& part, const Mesh& control, int levels, Cod
     }
   }
   return best;
+}
+
+// The stream's grid values numbered from other start vertices (in_traversal_order): the
+// traversal, and with it the ranks and predictions, follow the start, and over 64 starts the
+// smallest stream is 1-3 % below the first (blade 1177 -> 1156 bytes, abc6 207 -> 203). The
+// surface is the same, but a smaller stream is measured again, so that the distance reported is
+// the written stream's. Returns no bytes when no start codes smaller.
+SnapCandidate cheapest_numbering(const Mesh& part, const std::vector<std::uint8_t>& stream, int bits, CodecParams params,
+                                 int levels, const std::function<bool(const SurfaceDistance&)>& meets,
+                                 const std::string& name) {
+  const DecodedStream written = decode(stream, name);
+  params.quant_bits = bits;
+  const int n = written.mesh.num_vertices(), starts = std::min(n, kStarts);
+  std::vector<std::uint8_t> best;
+  for (int k = 1; k < starts; ++k) {
+    auto bytes = encode(in_traversal_order(written.mesh, static_cast<int>(static_cast<long long>(k) * n / starts)), params);
+    if (bytes.size() < (best.empty() ? stream.size() : best.size())) best = std::move(bytes);
+  }
+  if (best.empty()) return {};
+  const SurfaceDistance d = decoded_distance(part, decode(best, name).mesh, levels);
+  if (!meets(d)) return {};
+  return {std::move(best), d};
 }
 
 }  // namespace
@@ -157,9 +181,16 @@ ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& p
       }
     }
   }
-  // Snapping on the chosen polyhedron, at its bits and one more: each snapped stream is decoded
-  // and measured like the plain ones, and the smallest that meets the tolerances wins (the
-  // plain one included).
+  // The cheapest numbering of the chosen stream; then snapping on the chosen polyhedron, at its
+  // bits and one more: each snapped stream is decoded and measured like the plain ones, and the
+  // smallest that meets the tolerances wins (the plain one included), numbered cheapest too.
+  const auto renumber = [&]() {
+    SnapCandidate c = cheapest_numbering(part, out.bytes, out.bits, params, search.levels, meets, name);
+    if (c.bytes.empty()) return;
+    out.bytes = std::move(c.bytes);
+    out.distance = c.distance;
+  };
+  if (search.bits == 0 && out.meets) renumber();
   out.unsnapped_bytes = out.bytes.size();
   if (search.snap && search.bits == 0 && out.meets) {
     const Mesh& control = *polyhedra[static_cast<std::size_t>(out.polyhedron)];
@@ -175,6 +206,7 @@ ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& p
       out.bits = bits;
       out.snapped = true;
     }
+    if (out.snapped) renumber();
   }
   return out;
 }

@@ -1,5 +1,6 @@
 // The stream a compress run writes: among the control polyhedra that met the tolerance, each at
 // the fewest quantisation bits whose decoded surface still meets it, the smallest; then
+// the chosen polyhedron is numbered from the start vertex that codes smallest, and
 // rate-distortion snapping (CodecParams::snap_cells) spends the tolerance the chosen surface
 // leaves unused on bytes. Every candidate stream is decoded, subdivided and measured by
 // decoded_distance, the measurement `meshmark compare` reports: nothing is accepted on an
@@ -30,9 +31,11 @@ struct ChosenStream {
   std::vector<std::uint8_t> bytes;
   SurfaceDistance distance;       // of the decoded `bytes`
   int bits = 0;
-  int polyhedron = 0;             // index into the polyhedra given
+  // Index into the polyhedra given. The stream may number its vertices from another start
+  // vertex than the polyhedron does (in_traversal_order, codec/stream.h): the same surface.
+  int polyhedron = 0;
   bool snapped = false;
-  std::size_t unsnapped_bytes = 0;  // the chosen polyhedron's plain stream
+  std::size_t unsnapped_bytes = 0;  // the chosen polyhedron's plain stream (cheapest numbering)
   bool meets = false;             // distance within both tolerances
 };
 
