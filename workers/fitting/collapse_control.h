@@ -1,5 +1,5 @@
-// Half-edge collapse on a triangle control polyhedron that keeps its crease network: the step
-// by which compress() coarsens a polyhedron that already meets the tolerance.
+// Half-edge collapse on a control polyhedron (triangles and quads) that keeps its crease
+// network: the step by which compress() coarsens a polyhedron that already meets the tolerance.
 //
 // Why on the control mesh and not on the part: the refinement rounds decimate the part afresh
 // for every vertex count, so which count meets the tolerance varies by 10-20 % with the path
@@ -14,7 +14,8 @@
 namespace mm {
 
 // Removes vertex `v` by moving it onto its neighbour `t` (t keeps its position); the faces on
-// edge (v, t) go, and v's other faces take t. Crease edges of v become t's. Refused (nullopt)
+// edge (v, t) go (a quad on it loses v and becomes a triangle), and v's other faces take t.
+// Crease edges of v become t's. Refused (nullopt)
 // when the result would change the crease network or the surface's topology:
 // - v is a corner, lies on an open boundary, or has a crease count other than 0 or 2;
 // - v is on a crease and (v, t) is not one of its crease edges (a crease may only shorten
@@ -23,7 +24,7 @@ namespace mm {
 //   fewer than five vertices would remain;
 // - a face of v turns by more than 90 degrees when v moves onto t (the fit starts from a
 //   folded surface otherwise);
-// - a face is not a triangle.
+// - a face around v is neither a triangle nor a quad, or a quad holds v and t opposite.
 // Indices above v move down by one; creases and corners are renumbered and stay sorted.
 std::optional<Mesh> collapse_control_vertex(const Mesh& control, int v, int t);
 

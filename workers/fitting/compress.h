@@ -25,7 +25,7 @@ struct CompressOptions {
   // Then remove control vertices from the smallest polyhedron that met the tolerance, fitting
   // again after each removal, while it still meets it (fitting/collapse_control.h). Never below
   // the first round's vertex count (about one vertex per patch beyond the corners), which also
-  // keeps the spectral watermark's capacity. Streams 15 % smaller over 17 parts, for 2-4x the
+  // keeps the spectral watermark's capacity. Streams 9 % smaller over 17 parts and 3 seeds, for 3-5x the
   // fit time, so off here and in protect jobs, on in `meshmark compress`.
   bool coarsen = false;
   // The fit's sampling seed. Each seed gives its own deterministic result; which vertex count
