@@ -13,6 +13,7 @@
 #include "common/shuffled_mesh.h"
 #include "meshio/normalize.h"
 #include "meshio/read_mesh.h"
+#include "fitting/compress.h"
 #include "registration/resynchronize.h"
 #include "subdivision/decompress.h"
 #include "subdivision/subdivide.h"
@@ -117,6 +118,29 @@ TEST(Resync, MovedShuffledCopyIsAlignedBack) {
   EXPECT_LT(max_error(r.points, ctx.control().points), 1e-10);
   EXPECT_NEAR(r.to_control_frame.scale, 1 / s.scale, 1e-12);
   EXPECT_LT((r.to_control_frame.after(s).rotation - Eigen::Matrix3d::Identity()).norm(), 1e-10);
+}
+
+// A part that is round about an axis (abc6, a flanged ring) fixes a turn about that axis only
+// up to its symmetry: the alignment's closest-point fit settles anywhere along it, and no vertex
+// pairs with its own. A welded copy turned 30 degrees about z and rescaled (as `meshmark attack
+// similarity` makes them) is paired after a search over turns about the axis.
+TEST(Resync, TurnedCopyOfARoundPartIsPairedAfterATurnSearch) {
+  MM_REQUIRE_SHARED_MESHES();
+  const Mesh control = mm::compress(mm::read_mesh(mm::test::shared_mesh("abc6.stl"))).control;
+  const mm::ResyncContext ctx(control, 3);
+  for (double degrees : {30.0, 90.0}) {
+    mm::Similarity s;
+    s.scale = 2.5;
+    s.rotation = Eigen::AngleAxisd(degrees * M_PI / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    s.translation = Eigen::RowVector3d(3, -1, 2);
+    Mesh suspect = shuffled(mm::subdivide(control, 3), 17);
+    suspect.points = s.apply(suspect.points);
+    const auto r = mm::resynchronize(ctx, suspect);
+    EXPECT_EQ(r.method, "subdivided") << degrees;
+    EXPECT_TRUE(r.order_recovered) << degrees;
+    EXPECT_EQ(r.matched_fraction, 1.0) << degrees;
+    EXPECT_LT(max_error(r.points, control.points), 1e-9) << degrees;
+  }
 }
 
 TEST(Resync, MovedCopyInOrderIsAlignedBack) {
