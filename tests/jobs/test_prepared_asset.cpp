@@ -77,6 +77,22 @@ TEST(PreparedAsset, CacheKeyNamesEveryCompressionOption) {
   EXPECT_EQ(cap.key(), k);
 }
 
+// compression.coarsen = true in the daemon's config: the prepared polyhedron is the coarsened
+// one, within the tolerance (tolerance_met: the preparation's dense measurement confirmed it),
+// and its basis is that polyhedron's.
+TEST(PreparedAsset, CoarseningShrinksThePolyhedronWithinTheTolerance) {
+  MM_REQUIRE_SHARED_MESHES();
+  const Mesh m = read_mesh(test::shared_mesh("abc9.stl"));
+  PrepareParams coarse;
+  coarse.compression.coarsen = true;
+  const PreparedAsset a = prepare_asset(m, {}, "abc9.stl"), b = prepare_asset(m, coarse, "abc9.stl");
+  EXPECT_LT(b.control.num_vertices(), a.control.num_vertices());
+  EXPECT_TRUE(b.compression.tolerance_met);
+  EXPECT_LE(b.compression.stats.hausdorff / b.compression.stats.diagonal, coarse.compression.tolerance);
+  EXPECT_EQ(b.basis.num_vertices(), b.control.num_vertices());
+  EXPECT_EQ(b.control.corners.size(), a.control.corners.size());
+}
+
 TEST(PreparedAsset, CorruptRecordsAreInputErrors) {
   MM_REQUIRE_SHARED_MESHES();
   PreparedAsset a = prepare_asset(read_mesh(test::shared_mesh("chamfer-cube.off")), {}, "cube");
