@@ -427,67 +427,38 @@ void mutual_pairs(const Points& target, const PointGrid& target_grid, const Poin
 constexpr int kTurnSamples = 1000;
 constexpr std::size_t kTurnMinima = 16;
 constexpr int kTurnIcpRounds = 20;
-// A mean distance this small, relative to the original's diagonal, is an exact pose.
+// A trimmed RMS this small, relative to the original's diagonal, is an exact pose.
 constexpr double kTurnExact = 1e-12;
-
-// Mean distance from the moved suspect sample to the nearest original vertex: near zero only
-// where the suspect's vertices sit on their own originals.
-double vertex_distance(const PointGrid& grid, const Points& moved) {
-  double sum = 0;
-  for (Eigen::Index i = 0; i < moved.rows(); ++i) {
-    double d2 = 0;
-    grid.nearest(moved.row(i).transpose(), &d2);
-    sum += std::sqrt(d2);
-  }
-  return sum / static_cast<double>(std::max<Eigen::Index>(1, moved.rows()));
-}
-
-// Nearest-vertex ICP from `start` on `sample` (suspect vertices): each round pairs every sample
-// with its nearest original vertex and fits a similarity to the pairs. A copy of the original's
-// own vertices converges to distance 0 from near its pose. Returns the mean distance reached.
-double vertex_icp(const LevelData& level, const Points& sample, Similarity* transform, int rounds) {
-  double mean = 0;
-  for (int it = 0; it <= rounds; ++it) {
-    const Points cur = transform->apply(sample);
-    Points dst(sample.rows(), 3);
-    double sum = 0;
-    for (Eigen::Index i = 0; i < sample.rows(); ++i) {
-      double d2 = 0;
-      dst.row(i) = level.points.row(level.grid->nearest(cur.row(i).transpose(), &d2));
-      sum += std::sqrt(d2);
-    }
-    mean = sum / static_cast<double>(std::max<Eigen::Index>(1, sample.rows()));
-    if (it == rounds || mean == 0) break;
-    *transform = fit_similarity(sample, dst);
-  }
-  return mean;
-}
 
 // A part that is round about an axis fixes a turn about it only up to its symmetry, so the
 // closest-point alignment of a turned copy may settle anywhere along that turn with every vertex
 // beside its own (abc6 turned 30 degrees: the alignment ended about 180 degrees off, 76 % of the
 // vertices paired, surface fit, p 0.1). Turns about the axis of the original's most distinct
-// principal moment, through its centroid, every degree: the local minima of the sample's mean
-// distance to the nearest original vertex (abc6 has one every 60 degrees or so, and the right
-// one was not the lowest) are each refined by nearest-vertex ICP, and the pose that ends
-// nearest is returned (after `aligned`).
-Similarity turn_search(const LevelData& level, const Points& suspect, const Similarity& aligned, int samples) {
+// principal moment, through its centroid, every degree: the local minima of the sample's
+// distance to the nearest original vertex (icp_similarity's trimmed RMS, no round; abc6 has one
+// every 60 degrees or so, and the right one was not the lowest) are each refined by
+// nearest-vertex ICP (`nearest_vertex`), and the pose that ends nearest is returned (after
+// `aligned`). A copy of the original's own vertices converges to 0 from near its pose.
+Similarity turn_search(const LevelData& level, const Points& suspect, const Similarity& aligned,
+                       const ClosestPoint& nearest_vertex, const IcpOptions& icp) {
   const Points& t = level.points;
   const Eigen::RowVector3d centre = t.colwise().mean();
   const Points centred = t.rowwise() - centre;
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> pca(centred.transpose() * centred);
   const Eigen::Vector3d lambda = pca.eigenvalues();  // ascending
   const Eigen::Vector3d axis = pca.eigenvectors().col(lambda(1) - lambda(0) > lambda(2) - lambda(1) ? 0 : 2);
-  const Points sample = strided(suspect, samples);
-  const Points moved = aligned.apply(sample);
-  const auto turn = [&](int degrees) {
+  const Points sample = strided(suspect, kTurnSamples), none(0, 3);
+  const auto turned = [&](int degrees) {
     Similarity r;
     r.rotation = Eigen::AngleAxisd(degrees * M_PI / 180, axis).toRotationMatrix();
     r.translation = centre - centre * r.rotation.transpose();
-    return r;
+    return r.after(aligned);
+  };
+  const auto icp_from = [&](const Similarity& start, int rounds) {
+    return icp_similarity(sample, nearest_vertex, none, start, icp, rounds);
   };
   std::vector<double> d(360);
-  for (int k = 0; k < 360; ++k) d[static_cast<size_t>(k)] = vertex_distance(*level.grid, turn(k).apply(moved));
+  for (int k = 0; k < 360; ++k) d[static_cast<size_t>(k)] = icp_from(turned(k), 0).rms;
   std::vector<int> minima;
   for (int k = 0; k < 360; ++k)
     if (d[static_cast<size_t>(k)] < d[static_cast<size_t>((k + 359) % 360)] &&
@@ -497,27 +468,25 @@ Similarity turn_search(const LevelData& level, const Points& suspect, const Simi
             [&d](int a, int b) { return d[static_cast<size_t>(a)] < d[static_cast<size_t>(b)]; });
   if (minima.size() > kTurnMinima) minima.resize(kTurnMinima);
   const double exact = kTurnExact * (t.colwise().maxCoeff() - t.colwise().minCoeff()).norm();
-  Similarity best = aligned;
-  double best_mean = vertex_icp(level, sample, &best, kTurnIcpRounds);
+  IcpResult best = icp_from(aligned, kTurnIcpRounds);
   for (int k : minima) {
-    if (best_mean <= exact) break;
-    Similarity pose = turn(k).after(aligned);
-    const double mean = vertex_icp(level, sample, &pose, kTurnIcpRounds);
-    if (mean < best_mean) best_mean = mean, best = pose;
+    if (best.rms <= exact) break;
+    IcpResult pose = icp_from(turned(k), kTurnIcpRounds);
+    if (pose.rms < best.rms) best = pose;
   }
-  return best;
+  return best.transform;
 }
 
 Matching match_vertices(const LevelData& level, const Points& suspect, const ResyncOptions& o) {
   Matching m;
+  const PointGrid& grid = *level.grid;
+  const ClosestPoint nearest_vertex = [&grid](const Eigen::Vector3d& q) {
+    return Eigen::Vector3d(grid.points().row(grid.nearest(q)).transpose());
+  };
   if (o.align) {
-    const PointGrid& grid = *level.grid;
-    ClosestPoint closest = [&grid](const Eigen::Vector3d& q) {
-      return Eigen::Vector3d(grid.points().row(grid.nearest(q)).transpose());
-    };
     const Points moving = strided(suspect, o.alignment_samples);
     const Points fixed = strided(level.points, o.alignment_samples);
-    m.transform = align_similarity(moving, moving, fixed, closest, o.icp).transform;
+    m.transform = align_similarity(moving, moving, fixed, nearest_vertex, o.icp).transform;
   }
   // Refit the similarity on all mutual pairs (7 DOF from every vertex), then pair again.
   const auto pair_and_refit = [&](Matching& x) {
@@ -534,7 +503,7 @@ Matching match_vertices(const LevelData& level, const Points& suspect, const Res
   pair_and_refit(m);
   if (o.align && m.matched < o.min_matched_fraction * static_cast<double>(level.points.rows())) {
     Matching turned;
-    turned.transform = turn_search(level, suspect, m.transform, kTurnSamples);
+    turned.transform = turn_search(level, suspect, m.transform, nearest_vertex, o.icp);
     pair_and_refit(turned);
     if (turned.matched > m.matched) m = std::move(turned);
   }
