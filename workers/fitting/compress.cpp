@@ -46,7 +46,7 @@ constexpr double kCoarsenLevels[] = {1.0, 0.9, 0.8};
 // Vertices responsible for the smallest errors go first, each onto its nearest allowed
 // neighbour, several at once where they are far apart (one fit per batch; a batch that misses
 // is halved). Returns the chain of polyhedra kept, largest first.
-std::vector<FitResult> coarsen(const FitResult& start, const FitTarget& target, FitOptions fit, const CompressOptions& o,
+std::vector<FitResult> coarsen(const FitResult& start, const FitTarget& target, FitOptions fit, double tolerance,
                               int floor) {
   fit.iterations = kCoarsenIterations;
   std::vector<FitResult> chain;
@@ -95,7 +95,7 @@ std::vector<FitResult> coarsen(const FitResult& start, const FitTarget& target, 
     }
     if (removed.empty()) break;
     FitResult r = fit_control_points(smaller, target, fit);
-    const bool fits = r.stats.hausdorff / r.stats.diagonal <= o.tolerance;
+    const bool fits = r.stats.hausdorff / r.stats.diagonal <= tolerance;
     if (fits) {
       // Single removals that missed stay marked away from this batch's neighbourhoods.
       std::vector<char> still(r.control.num_vertices(), 0);
@@ -164,6 +164,14 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
   // Rounds that keep the importance and lower the vertex count continue the last decimation.
   ControlDecimation decimation(mesh, features, seg);
 
+  // The fit samples its surface at the refined vertices; a caller's denser measurement of a
+  // candidate (in the part's units) has the last word.
+  const auto confirmed = [&o, &out](const Mesh& unit_box_control) {
+    if (!o.verify) return true;
+    Mesh candidate = unit_box_control;
+    undo(out.normalization, candidate.points);
+    return o.verify(candidate) <= o.tolerance;
+  };
   bool have = false, best_fits = false;
   FitResult best;
   std::vector<CompressCandidate> fitting;  // every round's polyhedron that met the tolerance, unit box
@@ -192,14 +200,7 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
         result_error = variant.region_error;
         rel = error;
       }
-      bool variant_fits = error <= o.tolerance;
-      // The fit samples its surface at the refined vertices; a caller's denser measurement of the
-      // candidate (in the part's units) has the last word.
-      if (variant_fits && o.verify) {
-        Mesh candidate = variant.control;
-        undo(out.normalization, candidate.points);
-        variant_fits = o.verify(candidate) <= o.tolerance;
-      }
+      const bool variant_fits = error <= o.tolerance && confirmed(variant.control);
       if (variant_fits) fitting.push_back({variant.control, variant.stats});
       // Best: the fewest vertices among rounds that fit, else the smallest error.
       if (!have || (variant_fits && (!best_fits || n < best.control.num_vertices())) ||
@@ -258,7 +259,7 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
     // Candidates for the stream: per headroom level, the smallest polyhedron whose fit error is
     // within that fraction of the tolerance (a polyhedron at the tolerance needs a fine grid, one
     // with headroom may take a coarser one). The dense measurement decides.
-    std::vector<FitResult> chain = coarsen(best, target, fit, o, first_round_vertices);
+    std::vector<FitResult> chain = coarsen(best, target, fit, o.tolerance, first_round_vertices);
     std::vector<char> taken(chain.size(), 0);
     bool first = true;
     for (double level : kCoarsenLevels) {
@@ -266,13 +267,7 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
         if (chain[i].stats.hausdorff / chain[i].stats.diagonal > level * o.tolerance) continue;
         if (taken[i]) break;
         ++tries;
-        bool fits = true;
-        if (o.verify) {
-          Mesh candidate = chain[i].control;
-          undo(out.normalization, candidate.points);
-          fits = o.verify(candidate) <= o.tolerance;
-        }
-        if (!fits) continue;
+        if (!confirmed(chain[i].control)) continue;
         taken[i] = 1;
         fitting.push_back({chain[i].control, chain[i].stats});
         if (first) best = chain[i];
