@@ -11,6 +11,12 @@
 namespace mm {
 namespace {
 
+// A stream and its decoded surface's measured distance (no bytes: none found).
+struct MeasuredStream {
+  std::vector<std::uint8_t> bytes;
+  SurfaceDistance distance;
+};
+
 // Rate-distortion snapping (CodecParams::snap_cells) at one grid: spends the tolerance the
 // decoded surface leaves unused on bytes. Allowances come from the plain stream's per-coordinate
 // slack (quality/coordinate_slack.h) times a scale (kSnapScales): the slack is a first-order bound that
@@ -25,10 +31,6 @@ namespace {
 // quarter of them bracket-3's violation was missed. The decoded candidate is measured like the
 // plain one (decoded_distance); returns the smallest that meets the tolerances and is smaller
 // than `smaller_than`, or no bytes.
-struct SnapCandidate {
-  std::vector<std::uint8_t> bytes;
-  SurfaceDistance distance;
-};
 // Scales tried, each at B and B + 1. Measured on the bench parts (bytes with 4 alone -> with 8
 // alone -> with 2 alone): abc5 456 / 445 / 441, abc8 564 / 574 / 583, bracket-3 508 / 520 / 521,
 // rocker 1283 / 1280 / 1353, blade 1660 / 1960 / 1755, abc9 171 / 170 / 172, abc6 207 / 211 /
@@ -42,7 +44,7 @@ constexpr double kCloseToTolerance = 1.1;
 // Start vertices tried for the chosen polyhedron's numbering (evenly spaced in its numbering).
 constexpr int kStarts = 64;
 
-SnapCandidate snap_search(const Mesh& part, const Mesh& control, int levels, CodecParams params, double tolerance,
+MeasuredStream snap_search(const Mesh& part, const Mesh& control, int levels, CodecParams params, double tolerance,
                           std::size_t smaller_than, const std::function<bool(const SurfaceDistance&)>& meets,
                           const std::string& name) {
   // The slack is a guide (the measurement decides), so a quarter of the dense samples will do.
@@ -51,7 +53,7 @@ SnapCandidate snap_search(const Mesh& part, const Mesh& control, int levels, Cod
   const DecodedStream plain = decode(encode(control, params), name);
   const double step = plain.quantization.step;
   const std::vector<double> slack = coordinate_slack(part, plain.mesh, levels, tolerance, guide);
-  SnapCandidate best;
+  MeasuredStream best;
   for (double scale : kSnapScales) {
     CodecParams snapping = params;
     snapping.snap_cells.resize(slack.size());
@@ -94,7 +96,7 @@ SnapCandidate snap_search(const Mesh& part, const Mesh& control, int levels, Cod
 // smallest stream is 1-3 % below the first (blade 1177 -> 1156 bytes, abc6 207 -> 203). The
 // surface is the same, but a smaller stream is measured again, so that the distance reported is
 // the written stream's. Returns no bytes when no start codes smaller.
-SnapCandidate cheapest_numbering(const Mesh& part, const std::vector<std::uint8_t>& stream, int bits, CodecParams params,
+MeasuredStream cheapest_numbering(const Mesh& part, const std::vector<std::uint8_t>& stream, int bits, CodecParams params,
                                  int levels, const std::function<bool(const SurfaceDistance&)>& meets,
                                  const std::string& name) {
   const DecodedStream written = decode(stream, name);
@@ -185,7 +187,7 @@ ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& p
   // bits and one more: each snapped stream is decoded and measured like the plain ones, and the
   // smallest that meets the tolerances wins (the plain one included), numbered cheapest too.
   const auto renumber = [&]() {
-    SnapCandidate c = cheapest_numbering(part, out.bytes, out.bits, params, search.levels, meets, name);
+    MeasuredStream c = cheapest_numbering(part, out.bytes, out.bits, params, search.levels, meets, name);
     if (c.bytes.empty()) return;
     out.bytes = std::move(c.bytes);
     out.distance = c.distance;
@@ -199,7 +201,7 @@ ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& p
     for (int bits = out.bits; bits <= top; ++bits) {
       CodecParams at = params;
       at.quant_bits = bits;
-      SnapCandidate s = snap_search(part, control, search.levels, at, tolerance, out.bytes.size(), meets, name);
+      MeasuredStream s = snap_search(part, control, search.levels, at, tolerance, out.bytes.size(), meets, name);
       if (s.bytes.empty()) continue;
       out.bytes = std::move(s.bytes);
       out.distance = s.distance;
