@@ -582,7 +582,7 @@ FitResult fit_control_points(const Mesh& control, const FitTarget& prepared, con
                         target_creases, o, with_creases, &hints, &normal);
     const double scale = c.weight_sum / n;  // data weight per control vertex
     // A tiny pull towards the current positions (1e-6 I) keeps vertices without data well-posed.
-    const SpMat& M = system(StGS(St, GS.consume(normal.G, S)), LtL, o.smoothness * scale, (1e-6 * scale) * 1.0);
+    const SpMat& M = system(StGS(St, GS.consume(normal.G, S)), LtL, o.smoothness * scale, 1e-6 * scale);
     Eigen::MatrixXd rhs = times3(St, normal.Y) + (1e-6 * scale) * X;
     // M's row-major arrays read as column-major are its transpose, whose lower triangle (all
     // the solver reads) is M's upper triangle, all that was computed of S^T G S.
