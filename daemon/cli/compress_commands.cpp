@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -51,6 +52,52 @@ Mesh load_surface(const std::string& path, int level) {
   return decompress_to_level(s.mesh, level >= 0 ? level : stream_levels(s, 3));
 }
 
+struct FitAtAngle {
+  double angle;
+  CompressResult result;
+};
+struct FitsAtAngles {
+  std::vector<FitAtAngle> fits;  // one per distinct crease network, in the order of the angles
+  std::vector<double> refused;   // angles at which compress() refused the part
+  // Every fit's candidates that met the tolerance, fewest vertices first, with their fit.
+  std::vector<std::pair<const FitAtAngle*, const Mesh*>> polyhedra;
+};
+
+// compress() at each angle whose crease network differs from the earlier angles' (the same
+// network gives the same fit). An angle at which compress() refuses the part (more corners
+// than the budget, say) is left out while another angle fits it; when none does, the first
+// refusal is thrown.
+FitsAtAngles fit_at_angles(const Mesh& mesh, const CompressOptions& options, const std::vector<double>& angles,
+                           const std::string& source) {
+  FitsAtAngles out;
+  out.fits.reserve(angles.size());  // `polyhedra` points into it
+  std::vector<Features> networks;
+  std::optional<InputError> refusal;
+  for (const double angle : angles) {
+    CompressOptions o = options;
+    o.angle_degrees = angle;
+    Features f = compress_features(mesh, o, source);
+    if (std::any_of(networks.begin(), networks.end(), [&f](const Features& g) {
+          return g.sharp_edges == f.sharp_edges && g.corners == f.corners;
+        }))
+      continue;
+    networks.push_back(std::move(f));
+    try {
+      out.fits.push_back({angle, compress(mesh, o, source)});
+    } catch (const InputError& e) {
+      if (!refusal) refusal = e;
+      out.refused.push_back(angle);
+    }
+  }
+  if (out.fits.empty()) throw *refusal;
+  for (const auto& fit : out.fits)
+    for (const auto& c : fit.result.candidates) out.polyhedra.emplace_back(&fit, &c.control);
+  std::stable_sort(out.polyhedra.begin(), out.polyhedra.end(), [](const auto& x, const auto& y) {
+    return x.second->num_vertices() < y.second->num_vertices();
+  });
+  return out;
+}
+
 char fmt_buf[64];
 const char* pct(double x) {
   std::snprintf(fmt_buf, sizeof fmt_buf, "%.4f%%", 100 * x);
@@ -68,6 +115,11 @@ void add_compress_commands(CLI::App& app) {
       double rms_tolerance = 0;  // 0: the bit search checks the Hausdorff distance only
       bool json = false;
       bool snap = true;
+      // 45 and 55 besides the usual 35: a part with many edges between them fits with fewer
+      // vertices when they are smooth (blade, seeds 1-3: 1156-1246 bytes at 35, 874-1000 at
+      // the best of the three; docs/compression.md). Parts whose crease network is the same at
+      // several of them are fitted once per network.
+      std::vector<double> angles{35.0, 45.0, 55.0};
     };
     auto a = std::make_shared<Args>();
     a->o.coarsen = true;  // the command's job is the smallest stream; protect jobs keep the fast path
@@ -82,8 +134,10 @@ void add_compress_commands(CLI::App& app) {
         ->capture_default_str()->check(CLI::Range(4, 10000000));
     c->add_option("--levels", a->o.levels, "subdivision levels the fit is measured at")
         ->capture_default_str()->check(CLI::Range(1, 5));
-    c->add_option("--angle", a->o.angle_degrees, "dihedral angle (degrees) above which an edge is a crease")
-        ->capture_default_str()->check(CLI::Range(1.0, 179.0));
+    c->add_option("--angle", a->angles,
+                  "dihedral angle (degrees) above which an edge is a crease; several (comma-separated): "
+                  "each distinct crease network is fitted and the smallest stream kept")
+        ->delimiter(',')->capture_default_str()->check(CLI::Range(1.0, 179.0));
     c->add_option("--bits", a->bits,
                   "quantisation bits per coordinate (default: the fewest, from 8 up, whose decoded "
                   "surface meets the tolerance; at most the bits whose rounding error stays below a "
@@ -120,22 +174,27 @@ void add_compress_commands(CLI::App& app) {
         verify_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - v0).count();
         return h;
       };
-      CompressResult r = compress(mesh, options, a->in);
+      const FitsAtAngles fits = fit_at_angles(mesh, options, a->angles, a->in);
       double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       const auto t1 = std::chrono::steady_clock::now();
       StreamSearch search;
       search.tolerance = a->o.tolerance;
       search.rms_tolerance = a->rms_tolerance;
-      search.levels = r.levels;
+      search.levels = a->o.levels;
       search.bits = a->bits;
-      search.fit_met = r.tolerance_met;
+      search.fit_met = !fits.polyhedra.empty();
       search.snap = a->snap;
-      search.metadata["levels"] = std::to_string(r.levels);
+      search.metadata["levels"] = std::to_string(a->o.levels);
       std::vector<const Mesh*> polyhedra;
-      for (const auto& fitted : r.candidates) polyhedra.push_back(&fitted.control);
-      if (polyhedra.empty()) polyhedra.push_back(&r.control);
+      std::vector<const FitAtAngle*> from;  // the fit each polyhedron came from
+      for (const auto& [fit, control] : fits.polyhedra) polyhedra.push_back(control), from.push_back(fit);
+      if (polyhedra.empty()) polyhedra.push_back(&fits.fits.front().result.control), from.push_back(&fits.fits.front());
       const ChosenStream s = smallest_stream(mesh, polyhedra, search, a->out);
       const Mesh* chosen = polyhedra[static_cast<std::size_t>(s.polyhedron)];
+      const FitAtAngle& chosen_fit = *from[static_cast<std::size_t>(s.polyhedron)];
+      const CompressResult& r = chosen_fit.result;
+      std::vector<double> fitted;
+      for (const auto& f : fits.fits) fitted.push_back(f.angle);
       const std::vector<std::uint8_t>& bytes = s.bytes;
       const SurfaceDistance& d = s.distance;
       const double select_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
@@ -162,6 +221,9 @@ void add_compress_commands(CLI::App& app) {
                        {"rms_tolerance", a->rms_tolerance > 0 ? nlohmann::json(a->rms_tolerance) : nlohmann::json()},
                        {"rms_tolerance_met", a->rms_tolerance <= 0 || d.rms_relative() <= a->rms_tolerance},
                        {"rounds", r.rounds},
+                       {"angle", chosen_fit.angle},
+                       {"angles_fitted", fitted},
+                       {"angles_refused", fits.refused},
                        {"coarsen", a->o.coarsen},
                        {"seed", a->o.seed},
                        {"seconds", seconds},
@@ -176,7 +238,8 @@ void add_compress_commands(CLI::App& app) {
       std::cout << a->out << ": " << bytes.size() << " bytes, " << chosen->num_vertices()
                 << " control vertices, " << chosen->num_faces() << " faces, "
                 << chosen->creases.size() << " creases, " << chosen->corners.size()
-                << " corners (from " << mesh.num_vertices() << " vertices)\n";
+                << " corners at crease angle " << chosen_fit.angle << " (from " << mesh.num_vertices()
+                << " vertices)\n";
       std::cout << "level " << r.levels << " vs input: Hausdorff " << pct(d.hausdorff_relative());
       std::cout << ", RMS " << pct(d.rms_relative());
       std::cout << ", mean " << pct(d.mean_relative()) << " of the diagonal";

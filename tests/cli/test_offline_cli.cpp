@@ -453,6 +453,54 @@ TEST(CliCompress, SnappingMeetsTheToleranceByCompareAndNeverGrows) {
   EXPECT_NEAR(m["hausdorff"].get<double>(), j["hausdorff"].get<double>(), 1e-12);
 }
 
+// `compress` fits each distinct crease network of its angles (35, 45 and 55 by default) and
+// writes the smallest stream of them all. The chamfered block's 45-degree chamfers are creases
+// at 35 only, and its network is the same at 45 and 55, so two fits; the stream is the one the
+// best single angle writes, whatever the order of the angles. An angle at which compress()
+// refuses a part is skipped while another fits it.
+TEST(CliCompress, FitsEachCreaseNetworkOfItsAnglesAndKeepsTheSmallest) {
+  Scratch s;
+  const std::string part = s / "block.off", both = s / "both.mmc", at35 = s / "35.mmc", at45 = s / "45.mmc",
+                    swapped = s / "swapped.mmc";
+  ASSERT_EQ(meshmark(s, {"sample", "chamfered-block", part}).code, 0);
+  const CliRun r = meshmark(s, {"compress", part, both, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const CliRun r35 = meshmark(s, {"compress", part, at35, "--angle", "35", "--json"});
+  const CliRun r45 = meshmark(s, {"compress", part, at45, "--angle", "45", "--json"});
+  const CliRun rs = meshmark(s, {"compress", part, swapped, "--angle", "55,45,35", "--json"});
+  ASSERT_EQ(r35.code, 0) << r35.err;
+  ASSERT_EQ(r45.code, 0) << r45.err;
+  ASSERT_EQ(rs.code, 0) << rs.err;
+  const json j = json::parse(r.out), j35 = json::parse(r35.out), j45 = json::parse(r45.out), js = json::parse(rs.out);
+  EXPECT_EQ(j["angles_fitted"], json::parse("[35, 45]"));
+  EXPECT_EQ(js["angles_fitted"], json::parse("[55, 35]"));
+  EXPECT_EQ(j35["angles_fitted"], json::parse("[35]"));
+  // At 45 the chamfers are smooth and the fit misses the tolerance within the budget.
+  EXPECT_LT(j35["stream_bytes"].get<std::size_t>(), j45["stream_bytes"].get<std::size_t>());
+  EXPECT_EQ(j["angle"].get<double>(), 35);
+  EXPECT_EQ(js["angle"].get<double>(), 35);
+  EXPECT_TRUE(j["tolerance_met"].get<bool>());
+  const auto bytes = [](const std::string& f) { return mm::read_stream_file(f); };
+  EXPECT_EQ(bytes(both), bytes(at35));
+  EXPECT_EQ(bytes(swapped), bytes(at35));
+
+  // At 1 degree every facet edge of the flanged cylinder's walls is a crease: more corners than
+  // the budget, refused alone...
+  const std::string round = s / "flanged.off", low = s / "low.mmc";
+  ASSERT_EQ(meshmark(s, {"sample", "flanged-cylinder", round}).code, 0);
+  const CliRun one = meshmark(s, {"compress", round, low, "--angle", "1", "--max-vertices", "100"});
+  EXPECT_EQ(one.code, 2);
+  EXPECT_NE(one.err.find("control vertex budget"), std::string::npos) << one.err;
+  EXPECT_FALSE(exists(low));
+  // ...and skipped beside an angle that fits.
+  const CliRun mixed = meshmark(s, {"compress", round, low, "--angle", "1,35", "--max-vertices", "100", "--json"});
+  ASSERT_EQ(mixed.code, 0) << mixed.err;
+  const json jm = json::parse(mixed.out);
+  EXPECT_EQ(jm["angles_fitted"], json::parse("[35]"));
+  EXPECT_EQ(jm["angles_refused"], json::parse("[1]"));
+  EXPECT_EQ(jm["angle"].get<double>(), 35);
+}
+
 // `compress` coarsens by default: on the flanged-cylinder sample it writes a polyhedron with
 // fewer control vertices than `--no-coarsen` does, within the tolerance by `compare`.
 TEST(CliCompress, CoarsensUnlessToldNot) {

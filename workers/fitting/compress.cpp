@@ -114,26 +114,41 @@ std::vector<FitResult> coarsen(const FitResult& start, const FitTarget& target, 
   return chain;
 }
 
-}  // namespace
 
-CompressResult compress(const Mesh& input, const CompressOptions& o, const std::string& source) {
+// The input validated, without its tags, moved into the unit box the fit works in.
+Mesh in_unit_box(const Mesh& input, const CompressOptions& o, const std::string& source, Normalization* n) {
   validate(input, o, source);
-  CompressResult out;
-  out.levels = o.levels;
-  out.input_vertices = input.num_vertices();
   Mesh mesh = input;
   mesh.creases.clear();
   mesh.corners.clear();
   try {
-    out.normalization = unit_box_normalization(mesh.points);
+    *n = unit_box_normalization(mesh.points);
   } catch (const std::invalid_argument& e) {
     throw InputError(source, e.what());
   }
-  apply(out.normalization, mesh.points);
+  apply(*n, mesh.points);
+  return mesh;
+}
 
+Features features_of(const Mesh& unit_box_mesh, const CompressOptions& o) {
   FeatureOptions fo;
   fo.angle_degrees = o.angle_degrees;
-  const Features features = detect_features(mesh, fo);
+  return detect_features(unit_box_mesh, fo);
+}
+
+}  // namespace
+
+Features compress_features(const Mesh& input, const CompressOptions& o, const std::string& source) {
+  Normalization n;
+  return features_of(in_unit_box(input, o, source, &n), o);
+}
+
+CompressResult compress(const Mesh& input, const CompressOptions& o, const std::string& source) {
+  CompressResult out;
+  const Mesh mesh = in_unit_box(input, o, source, &out.normalization);
+  out.levels = o.levels;
+  out.input_vertices = input.num_vertices();
+  const Features features = features_of(mesh, o);
   const Segmentation seg = segment(mesh, features);
   out.sharp_edges = static_cast<int>(features.sharp_edges.size());
   out.corners = static_cast<int>(features.corners.size());

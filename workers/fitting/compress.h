@@ -8,6 +8,7 @@
 #include <functional>
 
 #include "fitting/fit_control_points.h"
+#include "fitting/sharp_features.h"
 #include "meshio/mesh.h"
 #include "meshio/normalize.h"
 
@@ -69,5 +70,11 @@ struct CompressResult {
 // mesh above twice max_vertices (checked before any fitting).
 CompressResult compress(const Mesh& mesh, const CompressOptions& options = {},
                         const std::string& source = "mesh");
+
+// The sharp-feature network compress() fits to (sharp edges and corners, in `mesh`'s vertex
+// numbering). Of the options only angle_degrees changes it, and two angles with the same
+// network give the same compress() result: a caller trying several angles fits each network
+// once. Throws as compress() does for meshes it refuses before fitting.
+Features compress_features(const Mesh& mesh, const CompressOptions& options = {}, const std::string& source = "mesh");
 
 }  // namespace mm
