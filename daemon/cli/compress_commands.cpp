@@ -139,7 +139,7 @@ void add_compress_commands(CLI::App& app) {
                   "each distinct crease network is fitted and the smallest stream kept")
         ->delimiter(',')->capture_default_str()->check(CLI::Range(1.0, 179.0));
     c->add_option("--bits", a->bits,
-                  "quantisation bits per coordinate (default: the fewest, from 8 up, whose decoded "
+                  "quantisation bits per coordinate (default: the fewest, from 6 up, whose decoded "
                   "surface meets the tolerance; at most the bits whose rounding error stays below a "
                   "fifth of the tolerance, more only for a polyhedron that meets it by a hair)")
         ->check(CLI::Range(kMinQuantBits, kMaxQuantBits));

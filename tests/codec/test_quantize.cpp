@@ -114,6 +114,6 @@ TEST(Quantize, DegenerateInputs) {
   mm::Points bad = one;
   bad(0, 1) = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(mm::quantization_for(bad, 12), mm::InputError);
-  EXPECT_THROW(mm::quantization_for(one, 7), mm::InputError);
+  EXPECT_THROW(mm::quantization_for(one, 5), mm::InputError);
   EXPECT_THROW(mm::quantization_for(one, 25), mm::InputError);
 }

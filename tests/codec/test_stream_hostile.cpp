@@ -37,10 +37,10 @@ std::vector<std::uint8_t> valid_stream_v3() {
 // A version 3 stream from header fields and body bytes, with a valid checksum.
 std::vector<std::uint8_t> v3_stream(int packed_bits, std::int64_t exponent, std::array<std::int64_t, 3> origin,
                                     std::uint64_t vertices, std::uint64_t faces,
-                                    const std::vector<std::uint8_t>& body) {
+                                    const std::vector<std::uint8_t>& body, int version = 3) {
   cd::Writer w;
   w.raw(cd::kMagic, 4);
-  w.u8(3);
+  w.u8(static_cast<std::uint8_t>(version));
   w.u8(static_cast<std::uint8_t>(packed_bits));
   w.varint(cd::zigzag(exponent));
   for (auto o : origin) w.varint(cd::zigzag(o));
@@ -126,6 +126,11 @@ TEST(StreamHostile, Version3HeaderFields) {
   const std::vector<std::uint8_t> body = {0x5A, 0x31};
   // Quantisation bits beyond 24 (packed 17 = 25 bits).
   EXPECT_REJECTED_WITH((v3_stream(17, -8, {0, 0, 0}, 3, 1, body)), "quantisation bits 25");
+  // Version 4 holds 6 and 7 bits (packed 0 and 1) and nothing version 3 can hold, so that each
+  // stream has one form.
+  EXPECT_NO_THROW(mm::decode(v3_stream(1, -8, {0, 0, 0}, 0, 0, {}, 4), "v4"));
+  EXPECT_EQ(mm::decode(v3_stream(1, -8, {0, 0, 0}, 0, 0, {}, 4), "v4").quantization.bits, 7);
+  EXPECT_REJECTED_WITH((v3_stream(2, -8, {0, 0, 0}, 0, 0, {}, 4)), "quantisation bits 8 outside [6, 7] for format version 4");
   EXPECT_REJECTED_WITH((v3_stream(0, -1001, {0, 0, 0}, 3, 1, body)), "cell exponent -1001 outside");
   EXPECT_REJECTED_WITH((v3_stream(0, 1001, {0, 0, 0}, 3, 1, body)), "cell exponent 1001 outside");
   EXPECT_REJECTED_WITH((v3_stream(0, -8, {0, std::int64_t{1} << 50, 0}, 3, 1, body)), "cell origin");
@@ -143,10 +148,15 @@ TEST(StreamHostile, Version3HeaderFields) {
   t.insert(t.end() - 4, 16, 0x55);
   reseal(t);
   EXPECT_NE(rejection(t), "");
+  // Version 4 holds 6 and 7 bits only: this version 3 header's bits read as more are refused.
   t = s;
   t[4] = 4;
   reseal(t);
-  EXPECT_REJECTED_WITH(t, "unsupported format version 4");
+  EXPECT_REJECTED_WITH(t, "for format version 4");
+  t = s;
+  t[4] = 5;
+  reseal(t);
+  EXPECT_REJECTED_WITH(t, "unsupported format version 5");
   // Truncated header varints behind a valid checksum.
   std::vector<std::uint8_t> u = {'M', 'M', 'C', 'S', 3, 0, 0x8F, 0x8F, 0x8F, 0x8F, 0x8F, 0x8F};
   u.resize(u.size() + 4);
@@ -192,9 +202,9 @@ TEST(StreamHostile, BadMagicVersionAndTrailingBytes) {
   t[0] = 'X';
   EXPECT_REJECTED_WITH(t, "bad magic");
   t = s;
-  t[4] = 4;
+  t[4] = 5;
   reseal(t);
-  EXPECT_REJECTED_WITH(t, "unsupported format version 4");
+  EXPECT_REJECTED_WITH(t, "unsupported format version 5");
   t = s;
   t[4] = 0;
   reseal(t);
@@ -452,8 +462,11 @@ TEST(StreamHostile, SeededFuzzNeverCrashes) {
   // decompressed payload re-wrapped in a valid frame and CRC (reaches the payload checks).
   mm::CodecParams v2;
   v2.format_version = 2;
+  mm::CodecParams v4;
+  v4.quant_bits = 7;
   std::vector<std::vector<std::uint8_t>> seeds = {valid_stream(), mm::encode(mm::test::crease_cube(), v2),
-                                                  valid_stream_v3(), mm::encode(mm::test::crease_cube())};
+                                                  valid_stream_v3(), mm::encode(mm::test::crease_cube()),
+                                                  mm::encode(mm::test::wavy_grid(9, 7, 5), v4)};
   if (mm::test::shared_meshes_present()) {
     mm::CodecParams p;
     p.quant_bits = 16;
@@ -490,8 +503,8 @@ TEST(StreamHostile, SeededFuzzNeverCrashes) {
       t = seed;
       mutate(t);
       reseal(t);
-    } else if (seed[4] == 3) {
-      // Version 3: damage the range-coded body (or the header varints) and reseal.
+    } else if (seed[4] >= 3) {
+      // Versions 3 and 4: damage the range-coded body (or the header varints) and reseal.
       t = seed;
       std::vector<std::uint8_t> tail(t.begin() + 6, t.end() - 4);
       mutate(tail);

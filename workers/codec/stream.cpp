@@ -75,9 +75,11 @@ void validate_for_encoding(const Mesh& mesh, const CodecParams& params) {
   const std::string src = "encode";
   if (params.format_version != 2 && params.format_version != 3)
     throw InputError(src, "format version " + std::to_string(params.format_version) + " cannot be written (2 or 3)");
-  if (params.quant_bits < kMinQuantBits || params.quant_bits > kMaxQuantBits)
+  const int lowest = params.format_version == 2 ? kMinQuantBitsV3 : kMinQuantBits;
+  if (params.quant_bits < lowest || params.quant_bits > kMaxQuantBits)
     throw InputError(src, "quantisation bits " + std::to_string(params.quant_bits) + " outside [" +
-                              std::to_string(kMinQuantBits) + ", " + std::to_string(kMaxQuantBits) + "]");
+                              std::to_string(lowest) + ", " + std::to_string(kMaxQuantBits) +
+                              "] for format version " + std::to_string(params.format_version));
   if (static_cast<std::uint64_t>(mesh.num_vertices()) > kMaxStreamVertices)
     throw InputError(src, "too many vertices for a stream");
   if (mesh.faces.size() > kMaxStreamFaces) throw InputError(src, "too many faces for a stream");
@@ -240,9 +242,9 @@ Parts split(const std::uint8_t* data, std::size_t size, const std::string& sourc
   h.flags = in.u8("flags");
   h.bits = in.u8("quantisation bits");
   if (h.flags & ~kKnownFlags) in.fail("unknown flags " + std::to_string(h.flags));
-  if (h.bits < kMinQuantBits || h.bits > kMaxQuantBits)
+  if (h.bits < kMinQuantBitsV3 || h.bits > kMaxQuantBits)
     in.fail("quantisation bits " + std::to_string(h.bits) + " outside [" +
-            std::to_string(kMinQuantBits) + ", " + std::to_string(kMaxQuantBits) + "]");
+            std::to_string(kMinQuantBitsV3) + ", " + std::to_string(kMaxQuantBits) + "]");
   for (int a = 0; a < 3; ++a) h.offset[a] = in.f64("offset");
   h.step = in.f64("step");
   if (!h.offset.allFinite() || !std::isfinite(h.step) || !(h.step > 0))
@@ -358,7 +360,7 @@ std::vector<std::uint8_t> encode(const Mesh& mesh, const CodecParams& params) {
 
 DecodedStream decode(const std::uint8_t* data, std::size_t size, const std::string& source) {
   codec_detail::check_envelope(data, size, source);
-  if (data[4] == 3) return codec_detail::decode_v3(data, size, source);
+  if (data[4] >= 3) return codec_detail::decode_v3(data, size, source);
   codec_detail::Parts parts = codec_detail::split(data, size, source);
   const Header& h = parts.header;
   Reader in(parts.raw.data(), parts.raw.size(), source, "payload");

@@ -22,8 +22,9 @@ namespace mm {
 struct CodecParams {
   int quant_bits = 12;                        // [kMinQuantBits, kMaxQuantBits]
   int zstd_level = 19;                        // versions 1 and 2 only
-  // Format version written: 3 (default) or 2 (to compare sizes, or for readers built before
-  // version 3).
+  // Format written: 3 (default; the range-coded format, stored as version 4 when quant_bits is
+  // 6 or 7, which version 3's header cannot hold) or 2 (to compare sizes, or for readers built
+  // before version 3; 8 bits and more).
   int format_version = 3;
   // Small key-value strings (asset id, copy id...). Keys: 1..64 bytes of [A-Za-z0-9_.-];
   // values: up to 1024 bytes; at most 32 entries. Never put secrets here.

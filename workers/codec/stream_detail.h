@@ -13,7 +13,9 @@ constexpr std::uint8_t kMagic[4] = {'M', 'M', 'C', 'S'};
 // Version 2: plain face indices relative to the count of vertices seen so far,
 // parallelogram prediction. Version 1 (still read): plain indices, predictions 0-2.
 // Version 3: compact header and a range-coded body (codec/stream_v3.h); written by default.
-constexpr std::uint8_t kVersion = 3;
+// Version 4: version 3 with 6 or 7 quantisation bits, which version 3's header cannot hold;
+// written instead of version 3 for those bits only.
+constexpr std::uint8_t kVersion = 4;
 constexpr std::uint8_t kOldestVersion = 1;
 constexpr std::uint8_t kFlagZstd = 1;         // payload is one zstd frame (else stored as is)
 // Bits 1-2: coordinate prediction (codec/prediction.h: 0 plain, 1 previous vertex, 2 neighbours,

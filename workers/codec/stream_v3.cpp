@@ -482,8 +482,11 @@ int levels_code(const std::map<std::string, std::string>& metadata) {
 std::vector<std::uint8_t> header_bytes(const Mesh& mesh, const Quantization& q, int levels) {
   Writer w;
   w.raw(kMagic, 4);
-  w.u8(3);
-  w.u8(static_cast<std::uint8_t>((q.bits - kMinQuantBits) | (levels << 5)));
+  // Version 4 only where version 3 cannot hold the bits, so every stream version 3 can hold
+  // stays byte for byte what it was.
+  const bool v4 = q.bits < kMinQuantBitsV3;
+  w.u8(v4 ? 4 : 3);
+  w.u8(static_cast<std::uint8_t>((q.bits - (v4 ? kMinQuantBits : kMinQuantBitsV3)) | (levels << 5)));
   // The cell grid (codec/quantize.h): exponent and cell origin per axis.
   const int exponent = std::ilogb(q.step);
   w.varint(zigzag(exponent));
@@ -609,14 +612,17 @@ DecodedStream decode_v3(const std::uint8_t* data, std::size_t size, const std::s
   const std::size_t body_end = size - kChecksumBytes;
   Reader in(data + 5, body_end - 5, source, "header");
   DecodedStream out;
-  out.version = 3;
+  out.version = data[4];
   const std::uint8_t packed = in.u8("quantisation bits");
   Quantization& q = out.quantization;
-  q.bits = (packed & 31) + kMinQuantBits;
+  // Version 4 holds exactly the bits version 3 cannot (one way to write each stream).
+  const int lowest = out.version == 4 ? kMinQuantBits : kMinQuantBitsV3;
+  const int highest = out.version == 4 ? kMinQuantBitsV3 - 1 : kMaxQuantBits;
+  q.bits = (packed & 31) + lowest;
   const int levels = packed >> 5;
-  if (q.bits > kMaxQuantBits)
-    in.fail("quantisation bits " + std::to_string(q.bits) + " outside [" + std::to_string(kMinQuantBits) +
-            ", " + std::to_string(kMaxQuantBits) + "]");
+  if (q.bits > highest)
+    in.fail("quantisation bits " + std::to_string(q.bits) + " outside [" + std::to_string(lowest) + ", " +
+            std::to_string(highest) + "] for format version " + std::to_string(out.version));
   const std::int64_t exponent = unzigzag(in.varint("cell exponent", 0xFFFFFFFFull));
   if (exponent < kMinCellExponent || exponent > kMaxCellExponent)
     in.fail("cell exponent " + std::to_string(exponent) + " outside [" + std::to_string(kMinCellExponent) + ", " +

@@ -44,7 +44,7 @@ struct ChosenStream {
 int conservative_bits(const Mesh& control, double tolerance);
 
 // `polyhedra` fewest vertices first, in the part's units (compress()'s candidates, or its one
-// control mesh when none met the tolerance). Bits from 8 (kMinQuantBits) up to
+// control mesh when none met the tolerance). Bits from 6 (kMinQuantBits) up to
 // conservative_bits; a polyhedron whose stream at some bits is already no smaller than the best
 // so far is not measured further. When nothing meets the tolerances, the first polyhedron at
 // its conservative bits is returned (meets = false). `name` names the streams in errors.
