@@ -148,7 +148,8 @@ void add_compress_commands(CLI::App& app) {
                   "coarse grids add noise that the Hausdorff distance alone does not see")
         ->check(CLI::Range(1e-6, 0.5));
     c->add_flag("!--no-snap", a->snap,
-                "keep every coordinate on its nearest grid value (no rate-distortion snapping)");
+                "keep every coordinate on its nearest grid value (no rate-distortion snapping, no "
+                "grid descent)");
     c->add_option("--seed", a->o.seed,
                   "sampling seed of the fit (each seed is deterministic; the vertex count that meets "
                   "the tolerance varies with it)")
@@ -230,6 +231,7 @@ void add_compress_commands(CLI::App& app) {
                        {"verify_seconds", verify_seconds},
                        {"bits_seconds", select_seconds},
                        {"snapped", s.snapped},
+                       {"descended", s.descended},
                        {"unsnapped_bytes", s.unsnapped_bytes}};
       if (a->json) {
         std::cout << j.dump(2) << "\n";
