@@ -136,7 +136,8 @@ void add_compress_commands(CLI::App& app) {
         ->capture_default_str()->check(CLI::Range(1, 5));
     c->add_option("--angle", a->angles,
                   "dihedral angle (degrees) above which an edge is a crease; several (comma-separated): "
-                  "each distinct crease network is fitted and the smallest stream kept")
+                  "each distinct crease network is fitted and the smallest stream kept (one angle is "
+                  "up to 3x faster)")
         ->delimiter(',')->capture_default_str()->check(CLI::Range(1.0, 179.0));
     c->add_option("--bits", a->bits,
                   "quantisation bits per coordinate (default: the fewest, from 6 up, whose decoded "

@@ -428,29 +428,49 @@ TEST(CliCompress, WritesTheSmallestStreamOfTheCandidates) {
   EXPECT_LE(json::parse(c.out)["hausdorff"].get<double>(), 0.005);
 }
 
+namespace {
+
+// `compress IN OUT --json` with `extra`, and the same with --no-snap into another file: the
+// two summaries.
+std::pair<json, json> compress_with_and_without_snap(const Scratch& s, const std::string& in, const std::string& out,
+                                                     const std::vector<std::string>& extra) {
+  std::vector<std::string> args = {"compress", in, out, "--json"};
+  args.insert(args.end(), extra.begin(), extra.end());
+  const CliRun r = meshmark(s, args);
+  EXPECT_EQ(r.code, 0) << r.err;
+  args[2] = out + ".plain.mmc";
+  args.push_back("--no-snap");
+  const CliRun p = meshmark(s, args);
+  EXPECT_EQ(p.code, 0) << p.err;
+  return {json::parse(r.out), json::parse(p.out)};
+}
+
+// `compare A B`'s Hausdorff distance (relative to A's diagonal).
+double compared_hausdorff(const Scratch& s, const std::string& a, const std::string& b) {
+  const CliRun c = meshmark(s, {"compare", a, b, "--json"});
+  EXPECT_EQ(c.code, 0) << c.err;
+  return json::parse(c.out)["hausdorff"].get<double>();
+}
+
+}  // namespace
+
 // Rate-distortion snapping as `compress` uses it: on an ABC part whose 8-bit grid leaves part of
 // the tolerance unused, the snapped stream is never larger than the stream without snapping,
 // and `compare` (the quality code, on the written file) confirms the tolerance it reports.
 TEST(CliCompress, SnappingMeetsTheToleranceByCompareAndNeverGrows) {
   MM_REQUIRE_SHARED_MESHES();
   Scratch s;
-  const std::string in = shared_mesh("abc6.stl"), snapped = s / "snapped.mmc", plain = s / "plain.mmc";
-  const CliRun r = meshmark(s, {"compress", in, snapped, "--tolerance", "0.005", "--json"});
-  ASSERT_EQ(r.code, 0) << r.err;
-  const CliRun p = meshmark(s, {"compress", in, plain, "--tolerance", "0.005", "--json", "--no-snap"});
-  ASSERT_EQ(p.code, 0) << p.err;
-  const json j = json::parse(r.out), jp = json::parse(p.out);
+  const std::string in = shared_mesh("abc6.stl"), snapped = s / "snapped.mmc";
+  const auto [j, jp] = compress_with_and_without_snap(s, in, snapped, {"--tolerance", "0.005"});
   EXPECT_TRUE(j["tolerance_met"].get<bool>());
   EXPECT_FALSE(jp["snapped"].get<bool>());
   EXPECT_EQ(j["unsnapped_bytes"].get<std::size_t>(), jp["stream_bytes"].get<std::size_t>());
   EXPECT_LE(j["stream_bytes"].get<std::size_t>(), jp["stream_bytes"].get<std::size_t>());
   EXPECT_EQ(j["stream_bytes"].get<std::size_t>() < jp["stream_bytes"].get<std::size_t>(), j["snapped"].get<bool>());
   EXPECT_EQ(static_cast<std::size_t>(fs::file_size(snapped)), j["stream_bytes"].get<std::size_t>());
-  const CliRun c = meshmark(s, {"compare", in, snapped, "--json"});
-  ASSERT_EQ(c.code, 0) << c.err;
-  const json m = json::parse(c.out);
-  EXPECT_LE(m["hausdorff"].get<double>(), 0.005);
-  EXPECT_NEAR(m["hausdorff"].get<double>(), j["hausdorff"].get<double>(), 1e-12);
+  const double h = compared_hausdorff(s, in, snapped);
+  EXPECT_LE(h, 0.005);
+  EXPECT_NEAR(h, j["hausdorff"].get<double>(), 1e-12);
 }
 
 // Where a polyhedron misses the tolerance on a grid with its nearest values, grid values chosen
@@ -460,20 +480,15 @@ TEST(CliCompress, SnappingMeetsTheToleranceByCompareAndNeverGrows) {
 TEST(CliCompress, GridDescentMeetsTheToleranceOnACoarserGrid) {
   MM_REQUIRE_SHARED_MESHES();
   Scratch s;
-  const std::string in = shared_mesh("abc9.stl"), out = s / "d.mmc", plain = s / "p.mmc";
-  const CliRun r = meshmark(s, {"compress", in, out, "--seed", "3", "--json"});
-  ASSERT_EQ(r.code, 0) << r.err;
-  const CliRun p = meshmark(s, {"compress", in, plain, "--seed", "3", "--no-snap", "--json"});
-  ASSERT_EQ(p.code, 0) << p.err;
-  const json j = json::parse(r.out), jp = json::parse(p.out);
+  const std::string in = shared_mesh("abc9.stl"), out = s / "d.mmc";
+  const auto [j, jp] = compress_with_and_without_snap(s, in, out, {"--seed", "3"});
   EXPECT_TRUE(j["descended"].get<bool>());
   EXPECT_FALSE(jp["descended"].get<bool>());
   EXPECT_LT(j["bits"].get<int>(), jp["bits"].get<int>());
   EXPECT_LT(j["stream_bytes"].get<std::size_t>(), jp["stream_bytes"].get<std::size_t>());
-  const CliRun c = meshmark(s, {"compare", in, out, "--json"});
-  ASSERT_EQ(c.code, 0) << c.err;
-  EXPECT_LE(json::parse(c.out)["hausdorff"].get<double>(), 0.005);
-  EXPECT_NEAR(json::parse(c.out)["hausdorff"].get<double>(), j["hausdorff"].get<double>(), 1e-12);
+  const double h = compared_hausdorff(s, in, out);
+  EXPECT_LE(h, 0.005);
+  EXPECT_NEAR(h, j["hausdorff"].get<double>(), 1e-12);
 }
 
 // `compress` fits each distinct crease network of its angles (35, 45 and 55 by default) and
