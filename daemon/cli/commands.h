@@ -3,7 +3,9 @@
 // anything else -> exit 3. Usage errors exit 64. See docs/cli.md.
 #pragma once
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <stdexcept>
+#include <string>
 
 namespace mm::cli {
 
@@ -11,6 +13,20 @@ struct CommandFailed : std::runtime_error {
   CommandFailed(int exit_code, const std::string& what) : std::runtime_error(what), code(exit_code) {}
   int code;
 };
+
+// For every floating-point option: CLI11's Range lets NaN through (every comparison with it is
+// false), and "nan" or "inf" parse as numbers, so without this they reached the commands
+// (`compress --tolerance nan` was an internal error, exit 3). A usage error instead (exit 64).
+inline const CLI::Validator kFiniteNumber(
+    [](std::string& value) -> std::string {
+      try {
+        if (!std::isfinite(std::stod(value))) return "value " + value + " is not a finite number";
+      } catch (const std::exception&) {
+        // Not a number at all: the option's own conversion reports it.
+      }
+      return {};
+    },
+    "FINITE");
 
 void add_offline_commands(CLI::App& app);  // info, sample, keygen, attack, embed, extract
 void add_mark_commands(CLI::App& app);     // embed, extract (called by add_offline_commands)

@@ -129,7 +129,7 @@ void add_compress_commands(CLI::App& app) {
     c->add_option("output", a->out, "stream file to write (.mmc)")->required();
     c->add_option("--tolerance", a->o.tolerance,
                   "target symmetric Hausdorff distance relative to the bounding box diagonal")
-        ->capture_default_str()->check(CLI::Range(1e-6, 0.5));
+        ->capture_default_str()->check(CLI::Range(1e-6, 0.5))->check(kFiniteNumber);
     c->add_option("--max-vertices", a->o.max_vertices, "control vertex budget")
         ->capture_default_str()->check(CLI::Range(4, 10000000));
     c->add_option("--levels", a->o.levels, "subdivision levels the fit is measured at")
@@ -138,7 +138,7 @@ void add_compress_commands(CLI::App& app) {
                   "dihedral angle (degrees) above which an edge is a crease; several (comma-separated): "
                   "each distinct crease network is fitted and the smallest stream kept (one angle is "
                   "up to 3x faster)")
-        ->delimiter(',')->capture_default_str()->check(CLI::Range(1.0, 179.0));
+        ->delimiter(',')->capture_default_str()->check(CLI::Range(1.0, 179.0))->check(kFiniteNumber);
     c->add_option("--bits", a->bits,
                   "quantisation bits per coordinate (default: the fewest, from 6 up, whose decoded "
                   "surface meets the tolerance; at most the bits whose rounding error stays below a "
@@ -147,7 +147,7 @@ void add_compress_commands(CLI::App& app) {
     c->add_option("--rms-tolerance", a->rms_tolerance,
                   "also bound the RMS distance (relative to the diagonal) when choosing the bits: "
                   "coarse grids add noise that the Hausdorff distance alone does not see")
-        ->check(CLI::Range(1e-6, 0.5));
+        ->check(CLI::Range(1e-6, 0.5))->check(kFiniteNumber);
     c->add_flag("!--no-snap", a->snap,
                 "keep every coordinate on its nearest grid value (no rate-distortion snapping, no "
                 "grid descent)");
@@ -329,8 +329,8 @@ void add_compress_commands(CLI::App& app) {
     c->add_flag("--control", a->control, "draw a stream's control polyhedron (with its edges) instead of its surface");
     c->add_flag("--wire", a->wire, "draw every polygon edge");
     c->add_option("--level", a->level, "level for .mmc surfaces (default: the fitted level)")->check(CLI::Range(0, 6));
-    c->add_option("--azimuth", a->azimuth, "view direction around the up axis, degrees")->capture_default_str();
-    c->add_option("--elevation", a->elevation, "view direction above the horizon, degrees")->capture_default_str();
+    c->add_option("--azimuth", a->azimuth, "view direction around the up axis, degrees")->capture_default_str()->check(kFiniteNumber);
+    c->add_option("--elevation", a->elevation, "view direction above the horizon, degrees")->capture_default_str()->check(kFiniteNumber);
     c->add_option("--width", a->width)->capture_default_str()->check(CLI::Range(16, 8192));
     c->add_option("--height", a->height)->capture_default_str()->check(CLI::Range(16, 8192));
     c->callback([a] {

@@ -116,9 +116,9 @@ void add_embed_command(CLI::App& app) {
   c->add_option("--method", a->method, "1: multiplicative, eq. (8); 2: additive below T, eq. (9)")
       ->capture_default_str()->check(CLI::IsMember({1, 2}));
   c->add_option("-a,--strength", a->strength, "strength a, in (0, 1)")
-      ->capture_default_str()->check(CLI::Range(1e-9, 0.999999));
+      ->capture_default_str()->check(CLI::Range(1e-9, 0.999999))->check(kFiniteNumber);
   c->add_option("-T,--threshold", a->threshold, "method 2: coefficients with |Cs| < T move by T a (unit-box units)")
-      ->capture_default_str()->check(CLI::Range(0.0, 10.0));
+      ->capture_default_str()->check(CLI::Range(0.0, 10.0))->check(kFiniteNumber);
   c->add_option("--level", a->level, "mesh OUT: write the watermarked surface subdivided L times")
       ->check(CLI::Range(0, 5));
   c->add_option("--bits", a->bits,

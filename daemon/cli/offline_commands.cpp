@@ -102,7 +102,7 @@ void add_attack_commands(CLI::App& app) {
       "noise", "Add uniform noise in [-A, A] x (largest bounding-box side) to every coordinate");
   io(noise);
   noise->add_option("-A,--amplitude", a->amplitude, "A, relative to the largest bounding-box side")
-      ->capture_default_str()->check(CLI::Range(0.0, 1.0));
+      ->capture_default_str()->check(CLI::Range(0.0, 1.0))->check(kFiniteNumber);
   noise->add_option("--seed", a->seed, "random seed (same seed, same file)")->capture_default_str();
   noise->callback([a, finish] {
     InputFile in = load_input(a->in);
@@ -132,10 +132,10 @@ void add_attack_commands(CLI::App& app) {
   auto* sim = attack->add_subcommand(
       "similarity", "Scale, rotate about the z axis, then shift (in units of the largest bounding-box side)");
   io(sim);
-  sim->add_option("--scale", a->scale, "uniform scale factor")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
-  sim->add_option("--rotate", a->rotate, "rotation about the z axis, degrees")->capture_default_str();
+  sim->add_option("--scale", a->scale, "uniform scale factor")->capture_default_str()->check(CLI::Range(1e-6, 1e6))->check(kFiniteNumber);
+  sim->add_option("--rotate", a->rotate, "rotation about the z axis, degrees")->capture_default_str()->check(kFiniteNumber);
   sim->add_option("--shift", a->shift, "translation X Y Z, relative to the largest bounding-box side")
-      ->expected(3)->capture_default_str();
+      ->expected(3)->capture_default_str()->check(kFiniteNumber);
   sim->callback([a, finish] {
     InputFile in = load_input(a->in);
     apply_similarity(in.mesh.points, a->scale, a->rotate, {a->shift[0], a->shift[1], a->shift[2]});

@@ -365,6 +365,34 @@ TEST(CliMark, BadInputsExit2NamingTheFileAndWriteNothing) {
   EXPECT_FALSE(exists(out));
 }
 
+// "nan" and "inf" parse as numbers and pass CLI11's range checks (comparisons with NaN are
+// false): every floating-point option refuses them as usage errors, and nothing is written.
+TEST(CliUsage, NonFiniteNumbersAreUsageErrors) {
+  Scratch s;
+  const std::string part = s / "block.off", out = s / "out.mmc", mesh = s / "out.off", png = s / "out.png";
+  ASSERT_EQ(meshmark(s, {"sample", "chamfered-block", part}).code, 0);
+  const std::string key = s / "k.key";
+  ASSERT_EQ(meshmark(s, {"keygen", key}).code, 0);
+  const std::vector<std::vector<std::string>> cases = {
+      {"compress", part, out, "--tolerance", "nan"},
+      {"compress", part, out, "--rms-tolerance", "nan"},
+      {"compress", part, out, "--angle", "35,nan"},
+      {"render", part, png, "--azimuth", "inf"},
+      {"render", part, png, "--elevation", "nan"},
+      {"attack", "noise", part, mesh, "--amplitude", "nan"},
+      {"attack", "similarity", part, mesh, "--rotate", "nan"},
+      {"attack", "similarity", part, mesh, "--scale", "nan"},
+      {"attack", "similarity", part, mesh, "--shift", "0", "inf", "0"},
+      {"embed", part, key, out, "-m", "x", "--strength", "nan"},
+      {"embed", part, key, out, "-m", "x", "--method", "2", "--threshold", "nan"},
+  };
+  for (const auto& args : cases) {
+    const CliRun r = meshmark(s, args);
+    EXPECT_EQ(r.code, 64) << args[0] << " " << args[args.size() - 1] << ": " << r.err;
+  }
+  for (const auto& f : {out, mesh, png}) EXPECT_FALSE(exists(f)) << f;
+}
+
 // The fandisk target as a user runs it: at most 100 control vertices, Hausdorff <= 0.5 %
 // and RMS <= 0.1 % of the diagonal, measured on the written stream by `compare` (the quality
 // code). Without --rms-tolerance the bit search may stop at a grid whose noise lifts the RMS
