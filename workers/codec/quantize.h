@@ -33,7 +33,7 @@ struct Quantization {
 // wider bits field) holds 6 and 7, for polyhedra whose surface meets the tolerance on such a
 // coarse grid (abc9: 42 vertices at 7 bits, 116 bytes, against 132 at 8).
 constexpr int kMinQuantBits = 6, kMaxQuantBits = 24;
-constexpr int kMinQuantBitsV3 = 8;
+constexpr int kMinQuantBitsV3 = 8;  // the fewest versions 1 to 3 store
 
 // The grid for these points. The step is a fixed point of "quantise, dequantise, measure
 // again", so re-quantising dequantised points gives the same grid bit for bit; this is what

@@ -114,7 +114,6 @@ std::vector<FitResult> coarsen(const FitResult& start, const FitTarget& target, 
   return chain;
 }
 
-
 // The input validated, without its tags, moved into the unit box the fit works in.
 Mesh in_unit_box(const Mesh& input, const CompressOptions& o, const std::string& source, Normalization* n) {
   validate(input, o, source);

@@ -10,7 +10,6 @@
 #include "quality/coordinate_slack.h"
 #include "quality/grid_descent.h"
 
-
 namespace mm {
 namespace {
 
