@@ -74,7 +74,8 @@ CompressResult compress(const Mesh& mesh, const CompressOptions& options = {},
 // The sharp-feature network compress() fits to (sharp edges and corners, in `mesh`'s vertex
 // numbering). Of the options only angle_degrees changes it, and two angles with the same
 // network give the same compress() result: a caller trying several angles fits each network
-// once. Throws as compress() does for meshes it refuses before fitting.
+// once. Throws InputError as compress() does for invalid meshes (empty, non-finite, degenerate
+// box); the budget checks are compress()'s.
 Features compress_features(const Mesh& mesh, const CompressOptions& options = {}, const std::string& source = "mesh");
 
 }  // namespace mm
