@@ -467,7 +467,7 @@ Similarity turn_search(const LevelData& level, const Points& suspect, const Simi
   std::sort(minima.begin(), minima.end(),
             [&d](int a, int b) { return d[static_cast<size_t>(a)] < d[static_cast<size_t>(b)]; });
   if (minima.size() > kTurnMinima) minima.resize(kTurnMinima);
-  const double exact = kTurnExact * (t.colwise().maxCoeff() - t.colwise().minCoeff()).norm();
+  const double exact = kTurnExact * diagonal_of(t);
   IcpResult best = icp_from(aligned, kTurnIcpRounds);
   for (int k : minima) {
     if (best.rms <= exact) break;
