@@ -19,12 +19,12 @@ Mesh descended_on_grid(const Mesh& control, int bits, int levels) {
   const int n = control.num_vertices();
   Eigen::VectorXd column_norm2(n);
   for (int j = 0; j < n; ++j) column_norm2[j] = S.col(j).squaredNorm();
+  // Each axis moves only its own column, so the nearest values' offsets serve every axis.
+  const Points rounding = dequantize(grid, q) - control.points;
   for (int a = 0; a < 3 && n > 0; ++a) {
     const std::int32_t lo = grid.col(a).minCoeff(), hi = grid.col(a).maxCoeff();
-    Eigen::VectorXd moved(n);
-    for (int j = 0; j < n; ++j) moved[j] = q.offset[a] + grid(j, a) * q.step - control.points(j, a);
     // The refined vertices' offsets from the unquantised surface along this axis.
-    Eigen::VectorXd r = S * moved;
+    Eigen::VectorXd r = S * rounding.col(a);
     for (int sweep = 0; sweep < kMaxSweeps; ++sweep) {
       bool any = false;
       for (int j = 0; j < n; ++j) {
