@@ -567,6 +567,31 @@ TEST(CliCompress, FitsEachCreaseNetworkOfItsAnglesAndKeepsTheSmallest) {
   EXPECT_EQ(jm["angle"].get<double>(), 35);
 }
 
+// fandisk_quads (the paper's quad control mesh, 766 vertices) has folds a little flatter than 35
+// degrees that the smooth surface rounds off by 0.53 % however many vertices are spent: at the
+// default angles the fit misses 0.5 %, and `compress` goes on to 30 degrees, which meets it.
+// An explicit --angle is kept, and the miss says why.
+TEST(CliCompress, SmallerAnglesWhenTheDefaultOnesMissTheTolerance) {
+  MM_REQUIRE_SHARED_MESHES();
+  Scratch s;
+  const std::string in = shared_mesh("fandisk_quads.off"), def = s / "default.mmc", at35 = s / "35.mmc";
+  const CliRun r = meshmark(s, {"compress", in, def, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json j = json::parse(r.out);
+  EXPECT_TRUE(j["tolerance_met"].get<bool>());
+  EXPECT_EQ(j["angles_fitted"], json::parse("[35, 45, 55, 30]"));  // 25 and 20 not needed
+  EXPECT_EQ(j["angle"].get<double>(), 30);
+  const CliRun c = meshmark(s, {"compare", in, def, "--json"});
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_LE(json::parse(c.out)["hausdorff"].get<double>(), 0.005);
+
+  const CliRun e = meshmark(s, {"compress", in, at35, "--angle", "35"});
+  ASSERT_EQ(e.code, 0) << e.err;
+  EXPECT_NE(e.out.find("tolerance not reached in 6 refinement rounds"), std::string::npos) << e.out;
+  EXPECT_NE(e.out.find("a smaller --angle may help"), std::string::npos) << e.out;
+  EXPECT_NE(e.out.find("at crease angle 35 "), std::string::npos) << e.out;  // no other angle
+}
+
 // `compress` coarsens by default: on the flanged-cylinder sample it writes a polyhedron with
 // fewer control vertices than `--no-coarsen` does, within the tolerance by `compare`.
 TEST(CliCompress, CoarsensUnlessToldNot) {
