@@ -567,6 +567,26 @@ TEST(CliCompress, FitsEachCreaseNetworkOfItsAnglesAndKeepsTheSmallest) {
   EXPECT_EQ(jm["angle"].get<double>(), 35);
 }
 
+// The angles' fits run on several threads: the chamfered block has two crease networks (35 and
+// 45 degrees), fitted at once with --threads 2 and one after another with --threads 1, into the
+// same stream.
+TEST(CliCompress, ThreadsDoNotChangeTheStream) {
+  Scratch s;
+  const std::string part = s / "block.off", one = s / "one.mmc", two = s / "two.mmc";
+  ASSERT_EQ(meshmark(s, {"sample", "chamfered-block", part}).code, 0);
+  const CliRun r1 = meshmark(s, {"compress", part, one, "--threads", "1", "--json"});
+  ASSERT_EQ(r1.code, 0) << r1.err;
+  const CliRun r2 = meshmark(s, {"compress", part, two, "--threads", "2", "--json"});
+  ASSERT_EQ(r2.code, 0) << r2.err;
+  const json j1 = json::parse(r1.out), j2 = json::parse(r2.out);
+  EXPECT_EQ(j1["fit_threads"].get<int>(), 1);
+  EXPECT_EQ(j2["fit_threads"].get<int>(), 2);
+  EXPECT_EQ(j2["angles_fitted"], json::parse("[35, 45]"));
+  EXPECT_EQ(mm::read_stream_file(one), mm::read_stream_file(two));
+  for (const char* key : {"seconds", "verify_seconds", "fit_wall_seconds"}) EXPECT_GT(j2[key].get<double>(), 0) << key;
+  EXPECT_EQ(meshmark(s, {"compress", part, one, "--threads", "0"}).code, 64);  // a usage error
+}
+
 // fandisk_quads (the paper's quad control mesh, 766 vertices) has folds a little flatter than 35
 // degrees that the smooth surface rounds off by 0.53 % however many vertices are spent: at the
 // default angles the fit misses 0.5 %, and `compress` goes on to 30 degrees, which meets it.
