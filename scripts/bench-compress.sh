@@ -5,7 +5,8 @@
 # code); then find the smallest Google Draco stream (draco_encoder -cl 10, every -qp from 4 to 20)
 # whose decoded mesh has a Hausdorff distance no larger than ours, measured by the same compare
 # command.
-# Prints a table per mesh and the median size ratio Draco / meshmark; writes fandisk pictures.
+# Prints a table per mesh and the median size ratio Draco / meshmark, then a table of speed and
+# memory per mesh (the protect jobs' fit path, decompression to level 3); writes fandisk pictures.
 #
 # Usage: scripts/bench-compress.sh [OUT_DIR]     (env: MESHMARK=path/to/meshmark, MESHES=dir,
 #        MAX_VERTICES=1000, TOLERANCE=0.005, BITS (default: chosen by compress), LIST="fandisk.off ...",
@@ -139,6 +140,34 @@ done
 if [ ${#medians[@]} -gt 1 ]; then
   python3 -c "import sys; m=[float(x) for x in sys.argv[1:]]; print('median over seeds %s: min %.2f, mean %.2f, max %.2f' % (' '.join(sys.argv[1:]), min(m), sum(m) / len(m), max(m)))" "${medians[@]}"
 fi
+
+# Speed and memory, per mesh: the fit as protect jobs run it (one crease angle, 35 degrees, no
+# coarsening, seed 1, one thread; compress_s is compress() without its dense round checks, CPU
+# time, target < 1 s for a 20k-triangle part), that command's peak RSS, and the decoding plus
+# subdivision to level 3 of the first seed's stream above (best of 5 runs, without writing the
+# mesh; target < 10 ms).
+echo
+printf '%-14s %8s %8s %10s %8s %8s %10s\n' mesh in_faces ctrl_v compress_s check_s rss_MB dec_l3_ms
+first_seed=${SEEDS%% *}
+fast_ok=0 dec_ok=0 n_parts=0
+for name in $LIST; do
+  in="$MESHES/$name"
+  base="${name%.*}"
+  mmc="$OUT/$base.mmc"
+  [ "$SEEDS" = 1 ] || mmc="$OUT/$base.seed$first_seed.mmc"
+  fast=$("$MESHMARK" compress "$in" "$OUT/$base.protect-path.mmc" --tolerance "$TOLERANCE" \
+         --max-vertices "$MAX_VERTICES" --angle 35 --no-coarsen --threads 1 --seed 1 --json)
+  read -r faces ctrl secs check rss < <(jq -r '"\(.input_faces) \(.control_vertices) \(.seconds - .verify_seconds) \(.verify_seconds) \(.peak_rss_mb)"' <<<"$fast")
+  dec=$(for k in 1 2 3 4 5; do
+          "$MESHMARK" decompress "$mmc" "$OUT/$base.level3.ply" --level 3 --json | jq -r '.decode_seconds + .subdivide_seconds'
+        done | sort -g | head -1)
+  n_parts=$((n_parts + 1))
+  fast_ok=$((fast_ok + $(python3 -c "print(int($secs < 1))")))
+  dec_ok=$((dec_ok + $(python3 -c "print(int($dec < 0.010))")))
+  printf '%-14s %8d %8d %10.2f %8.2f %8.1f %10.2f\n' "$base" "$faces" "$ctrl" "$secs" "$check" "$rss" \
+    "$(python3 -c "print(1000 * $dec)")"
+done
+echo "compress under 1 s: $fast_ok of $n_parts parts; decompress to level 3 under 10 ms: $dec_ok of $n_parts"
 
 # Pictures of fandisk: original, control polyhedron with creases, decoded surface.
 if [ "$SEEDS" = 1 ] && [ -f "$OUT/fandisk.mmc" ] && "$MESHMARK" render --help >/dev/null 2>&1; then

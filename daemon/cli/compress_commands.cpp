@@ -15,6 +15,7 @@
 #include <string>
 #include <thread>
 #include <ctime>
+#include <sys/resource.h>
 #include <mutex>
 
 #include "cli/commands.h"
@@ -68,6 +69,13 @@ struct FitsAtAngles {
   double cpu_seconds = 0;  // of the fits, summed over their threads
   int threads = 1;         // the most fits that ran at once
 };
+
+// This process's peak resident set so far (getrusage: kilobytes on Linux), in MB.
+double peak_rss_mb() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_maxrss) / 1024.0;
+}
 
 double thread_cpu_seconds() {
   timespec t{};
@@ -326,6 +334,7 @@ void add_compress_commands(CLI::App& app) {
                        {"seconds", seconds},
                        {"verify_seconds", verify_seconds},
                        {"fit_wall_seconds", fit_wall_seconds},
+                       {"peak_rss_mb", peak_rss_mb()},
                        {"fit_threads", fits.threads},
                        {"bits_seconds", select_seconds},
                        {"snapped", s.snapped},
@@ -353,6 +362,7 @@ void add_compress_commands(CLI::App& app) {
       std::string in, out;
       int level = -1;
       long long faces = 0;
+      bool json = false;
     };
     auto a = std::make_shared<Args>();
     auto* c = app.add_subcommand("decompress", "Subdivide a .mmc stream and write the surface as a mesh");
@@ -363,12 +373,29 @@ void add_compress_commands(CLI::App& app) {
     c->add_option("--faces", a->faces, "smallest level with at least this many triangles (at most level 6)")
         ->check(CLI::Range(1LL, 1LL << 40))
         ->excludes(lvl);
+    c->add_flag("--json", a->json, "print the summary as JSON, with the decoding and subdivision times");
     c->callback([a] {
+      const auto t0 = std::chrono::steady_clock::now();
       auto s = decode_file(a->in);
-      Mesh m = a->faces > 0 ? decompress_to_triangle_count(s.mesh, a->faces)
-                            : decompress_to_level(s.mesh, a->level >= 0 ? a->level : stream_levels(s, 3));
+      const auto t1 = std::chrono::steady_clock::now();
+      const int level = a->faces > 0 ? -1 : (a->level >= 0 ? a->level : stream_levels(s, 3));
+      Mesh m = a->faces > 0 ? decompress_to_triangle_count(s.mesh, a->faces) : decompress_to_level(s.mesh, level);
+      const auto t2 = std::chrono::steady_clock::now();
       if (ends_with(a->out, ".stl")) m = triangulate(m);
       write_mesh(m, a->out);
+      if (a->json) {
+        // Decoding includes reading the file; neither includes writing the mesh.
+        const nlohmann::json j{{"input", a->in},
+                               {"output", a->out},
+                               {"level", level >= 0 ? nlohmann::json(level) : nlohmann::json()},
+                               {"control_vertices", s.mesh.num_vertices()},
+                               {"vertices", m.num_vertices()},
+                               {"faces", m.num_faces()},
+                               {"decode_seconds", std::chrono::duration<double>(t1 - t0).count()},
+                               {"subdivide_seconds", std::chrono::duration<double>(t2 - t1).count()}};
+        std::cout << j.dump(2) << "\n";
+        return;
+      }
       std::cout << a->out << ": " << m.num_vertices() << " vertices, " << m.num_faces() << " faces\n";
     });
   }
