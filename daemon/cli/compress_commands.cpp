@@ -177,16 +177,11 @@ const char* pct(double x) {
   return fmt_buf;
 }
 
-// Why the written stream misses the tolerance: the vertex budget, or the rounds ran out below it
-// (often an error that stopped falling: a fold the smooth surface rounds off, which a smaller
-// angle makes a crease).
+// Why the written stream misses the tolerance, with a hint when the user chose the angles.
 std::string missed_tolerance(const CompressResult& r, const CompressOptions& o, bool angles_given) {
-  const int n = r.control.num_vertices();
-  if (n >= o.max_vertices * 9 / 10)
-    return " (tolerance not reached within the control vertex budget of " + std::to_string(o.max_vertices) + ")";
-  return " (tolerance not reached in " + std::to_string(r.rounds) + " refinement rounds: " + std::to_string(n) +
-         " control vertices, under the budget of " + std::to_string(o.max_vertices) +
-         (angles_given ? "; a fold flatter than the crease angle? a smaller --angle may help)" : ")");
+  const bool rounds = r.control.num_vertices() < o.max_vertices * 9 / 10;
+  return " (tolerance not reached " + tolerance_miss_reason(r, o) +
+         (rounds && angles_given ? "; a fold flatter than the crease angle? a smaller --angle may help)" : ")");
 }
 
 }  // namespace

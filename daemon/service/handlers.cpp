@@ -156,7 +156,7 @@ LoadedAsset get_or_prepare(store::Store& st, const store::Asset& asset, const Me
   spdlog::info("compressed {}: {} -> {} control vertices, Hausdorff {:.3f} %, RMS {:.3f} % of the diagonal{}",
                asset.name, mesh.num_vertices(), prepared.control.num_vertices(),
                100 * cr.stats.hausdorff / cr.stats.diagonal, 100 * cr.stats.rms / cr.stats.diagonal,
-               cr.tolerance_met ? "" : " (tolerance not met within the vertex budget)");
+               cr.tolerance_met ? "" : " (tolerance not met " + tolerance_miss_reason(cr, pp.compression) + ")");
   store::Polyhedron row;
   row.asset_id = asset.id;
   row.params_key = key;

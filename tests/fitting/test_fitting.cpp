@@ -117,6 +117,25 @@ TEST(Compress, ControlVerticesComeInStreamOrder) {
   EXPECT_EQ(decoded.mesh.corners, r.control.corners);
 }
 
+// The reason a miss is reported with: the budget when the fit stopped at it (fandisk at 40
+// vertices), the rounds when it stopped below it (fandisk_quads' folds at 35 degrees: 176 of
+// 1000 in 6 rounds).
+TEST(Compress, ToleranceMissReasonTellsTheBudgetFromTheRounds) {
+  MM_REQUIRE_SHARED_MESHES();
+  mm::CompressOptions o;
+  o.max_vertices = 40;
+  const auto budget = mm::compress(mm::read_mesh(mm::test::shared_mesh("fandisk.off")), o);
+  ASSERT_FALSE(budget.tolerance_met);
+  EXPECT_EQ(mm::tolerance_miss_reason(budget, o), "within the control vertex budget of 40");
+  mm::CompressOptions q;
+  const auto rounds = mm::compress(mm::read_mesh(mm::test::shared_mesh("fandisk_quads.off")), q);
+  ASSERT_FALSE(rounds.tolerance_met);
+  EXPECT_EQ(mm::tolerance_miss_reason(rounds, q), "in 6 refinement rounds: " +
+                                                      std::to_string(rounds.control.num_vertices()) +
+                                                      " control vertices, under the budget of 1000");
+  EXPECT_LT(rounds.control.num_vertices(), 900);
+}
+
 TEST(Compress, MultipleComponentsStaySeparate) {
   MM_REQUIRE_SHARED_MESHES();
   auto m = mm::read_mesh(mm::test::shared_mesh("abc5.stl"));

@@ -137,6 +137,13 @@ Features features_of(const Mesh& unit_box_mesh, const CompressOptions& o) {
 
 }  // namespace
 
+std::string tolerance_miss_reason(const CompressResult& r, const CompressOptions& o) {
+  const int n = r.control.num_vertices();
+  if (n >= o.max_vertices * 9 / 10) return "within the control vertex budget of " + std::to_string(o.max_vertices);
+  return "in " + std::to_string(r.rounds) + " refinement rounds: " + std::to_string(n) +
+         " control vertices, under the budget of " + std::to_string(o.max_vertices);
+}
+
 Features compress_features(const Mesh& input, const CompressOptions& o, const std::string& source) {
   Normalization n;
   return features_of(in_unit_box(input, o, source, &n), o);

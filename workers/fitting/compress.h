@@ -6,6 +6,7 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <string>
 
 #include "fitting/fit_control_points.h"
 #include "fitting/sharp_features.h"
@@ -70,6 +71,13 @@ struct CompressResult {
 // mesh above twice max_vertices (checked before any fitting).
 CompressResult compress(const Mesh& mesh, const CompressOptions& options = {},
                         const std::string& source = "mesh");
+
+// Why a result misses the tolerance, for a message: "within the control vertex budget of B" when
+// it stopped at (nine tenths of) the budget, else "in R refinement rounds: n control vertices,
+// under the budget of B" (often an error that stopped falling: a fold flatter than the crease
+// angle, which the smooth surface rounds off however many vertices are spent; a smaller angle
+// makes it a crease).
+std::string tolerance_miss_reason(const CompressResult& r, const CompressOptions& o);
 
 // The sharp-feature network compress() fits to (sharp edges and corners, in `mesh`'s vertex
 // numbering). Of the options only angle_degrees changes it, and two angles with the same
