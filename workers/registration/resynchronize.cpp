@@ -756,7 +756,7 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
     if (std::abs(ns - nr) > o.count_tolerance * nr) continue;
     const LevelData& level = ctx.level(l);
     Matching m = match_vertices(level, suspect.points, o);
-    if (m.matched < o.min_matched_fraction * nr) continue;
+    if (m.matched < o.min_start_fraction * nr) continue;
     Resynchronized r = from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m, o.matching_rounds);
     // A copy that was only renumbered (welded STL, re-export) is already in the original's
     // frame, and a similarity fitted to its pairs with the original's vertices takes in the
@@ -772,7 +772,7 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
       ResyncOptions same_frame = o;
       same_frame.align = false;
       Matching m0 = match_vertices(level, suspect.points, same_frame);
-      if (m0.matched >= o.min_matched_fraction * nr) {
+      if (m0.matched >= o.min_start_fraction * nr) {
         Resynchronized r0 =
             from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m0, o.matching_rounds);
         if (r0.matched_fraction >= r.matched_fraction &&
@@ -791,6 +791,7 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
                                          suspect.points, m, o.matching_rounds);
       if (alt.matched_fraction >= r.matched_fraction && alt.residual_rms < r.residual_rms) r = std::move(alt);
     }
+    if (r.matched_fraction < o.min_matched_fraction) continue;
     if (!unmoved) refine_alignment(ctx, o, &r);
     if (l == 0) r.residual_rms = rms_rows(r.points, ctx.control.points) / ctx.diagonal;
     return r;
