@@ -51,7 +51,8 @@ struct ResyncOptions {
   // ...and tried when the first pairs, made with the unmarked original vertices, cover this
   // much: a mark plus noise of a fair fraction of the vertex spacing leaves some unpaired that
   // the rounds recover (abc5's polyhedron at level 3, marked, noise 5e-4, welded: 87.6 % at
-  // first, 99.4 % after). Kept well above what a remesh of similar size pairs by chance.
+  // first, 99.4 % after). A suspect that is not the same vertices (a remesh) still has to pair
+  // min_matched_fraction after the rounds, or it goes to the surface fit as before.
   double min_start_fraction = 0.8;
   double count_tolerance = 0.02;  // relative vertex-count difference still tried by matching
   int matching_rounds = 10;       // at most: solve, pair again with the estimate S x while pairs grow
