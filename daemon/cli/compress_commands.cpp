@@ -179,9 +179,9 @@ const char* pct(double x) {
 
 // Why the written stream misses the tolerance, with a hint when the user chose the angles.
 std::string missed_tolerance(const CompressResult& r, const CompressOptions& o, bool angles_given) {
-  const bool rounds = r.control.num_vertices() < o.max_vertices * 9 / 10;
   return " (tolerance not reached " + tolerance_miss_reason(r, o) +
-         (rounds && angles_given ? "; a fold flatter than the crease angle? a smaller --angle may help)" : ")");
+         (!stopped_at_budget(r, o) && angles_given ? "; a fold flatter than the crease angle? a smaller --angle may help)"
+                                                   : ")");
 }
 
 }  // namespace

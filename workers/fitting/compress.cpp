@@ -137,10 +137,13 @@ Features features_of(const Mesh& unit_box_mesh, const CompressOptions& o) {
 
 }  // namespace
 
+bool stopped_at_budget(const CompressResult& r, const CompressOptions& o) {
+  return r.control.num_vertices() >= o.max_vertices * 9 / 10;
+}
+
 std::string tolerance_miss_reason(const CompressResult& r, const CompressOptions& o) {
-  const int n = r.control.num_vertices();
-  if (n >= o.max_vertices * 9 / 10) return "within the control vertex budget of " + std::to_string(o.max_vertices);
-  return "in " + std::to_string(r.rounds) + " refinement rounds: " + std::to_string(n) +
+  if (stopped_at_budget(r, o)) return "within the control vertex budget of " + std::to_string(o.max_vertices);
+  return "in " + std::to_string(r.rounds) + " refinement rounds: " + std::to_string(r.control.num_vertices()) +
          " control vertices, under the budget of " + std::to_string(o.max_vertices);
 }
 

@@ -72,11 +72,14 @@ struct CompressResult {
 CompressResult compress(const Mesh& mesh, const CompressOptions& options = {},
                         const std::string& source = "mesh");
 
+// Whether a result stopped at the control vertex budget (nine tenths of it or more), rather than
+// in its refinement rounds below it (often an error that stopped falling: a fold flatter than the
+// crease angle, which the smooth surface rounds off however many vertices are spent; a smaller
+// angle makes it a crease).
+bool stopped_at_budget(const CompressResult& r, const CompressOptions& o);
+
 // Why a result misses the tolerance, for a message: "within the control vertex budget of B" when
-// it stopped at (nine tenths of) the budget, else "in R refinement rounds: n control vertices,
-// under the budget of B" (often an error that stopped falling: a fold flatter than the crease
-// angle, which the smooth surface rounds off however many vertices are spent; a smaller angle
-// makes it a crease).
+// stopped_at_budget, else "in R refinement rounds: n control vertices, under the budget of B".
 std::string tolerance_miss_reason(const CompressResult& r, const CompressOptions& o);
 
 // The sharp-feature network compress() fits to (sharp edges and corners, in `mesh`'s vertex
