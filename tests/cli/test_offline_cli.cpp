@@ -566,19 +566,14 @@ TEST(CliCompress, FitsEachCreaseNetworkOfItsAnglesAndKeepsTheSmallest) {
   const std::string part = s / "block.off", both = s / "both.mmc", at35 = s / "35.mmc", at45 = s / "45.mmc",
                     swapped = s / "swapped.mmc";
   ASSERT_EQ(meshmark(s, {"sample", "chamfered-block", part}).code, 0);
-  const CliRun r = meshmark(s, {"compress", part, both, "--json"});
-  ASSERT_EQ(r.code, 0) << r.err;
-  const CliRun r35 = meshmark(s, {"compress", part, at35, "--angle", "35", "--json"});
-  const CliRun r45 = meshmark(s, {"compress", part, at45, "--angle", "45", "--json"});
-  const CliRun rs = meshmark(s, {"compress", part, swapped, "--angle", "55,45,35", "--json"});
-  ASSERT_EQ(r35.code, 0) << r35.err;
-  ASSERT_EQ(r45.code, 0) << r45.err;
-  ASSERT_EQ(rs.code, 0) << rs.err;
-  const json j = json::parse(r.out), j35 = json::parse(r35.out), j45 = json::parse(r45.out), js = json::parse(rs.out);
+  const json j = compress_json(s, {part, both}), j35 = compress_json(s, {part, at35, "--angle", "35"}),
+             j45 = compress_json(s, {part, at45, "--angle", "45"}),
+             js = compress_json(s, {part, swapped, "--angle", "55,45,35"});
+  ASSERT_FALSE(j.is_null() || j35.is_null() || j45.is_null() || js.is_null());
   EXPECT_EQ(j["angles_fitted"], json::parse("[35, 45]"));
   EXPECT_EQ(js["angles_fitted"], json::parse("[55, 35]"));
   EXPECT_EQ(j35["angles_fitted"], json::parse("[35]"));
-  // At 45 the chamfers are smooth and the fit misses the tolerance within the budget.
+  // At 45 the chamfers are smooth and the fit misses the tolerance.
   EXPECT_LT(j35["stream_bytes"].get<std::size_t>(), j45["stream_bytes"].get<std::size_t>());
   EXPECT_EQ(j["angle"].get<double>(), 35);
   EXPECT_EQ(js["angle"].get<double>(), 35);
@@ -596,9 +591,8 @@ TEST(CliCompress, FitsEachCreaseNetworkOfItsAnglesAndKeepsTheSmallest) {
   EXPECT_NE(one.err.find("control vertex budget"), std::string::npos) << one.err;
   EXPECT_FALSE(exists(low));
   // ...and skipped beside an angle that fits.
-  const CliRun mixed = meshmark(s, {"compress", round, low, "--angle", "1,35", "--max-vertices", "100", "--json"});
-  ASSERT_EQ(mixed.code, 0) << mixed.err;
-  const json jm = json::parse(mixed.out);
+  const json jm = compress_json(s, {round, low, "--angle", "1,35", "--max-vertices", "100"});
+  ASSERT_FALSE(jm.is_null());
   EXPECT_EQ(jm["angles_fitted"], json::parse("[35]"));
   EXPECT_EQ(jm["angles_refused"], json::parse("[1]"));
   EXPECT_EQ(jm["angle"].get<double>(), 35);
@@ -657,15 +651,12 @@ TEST(CliCompress, SmallerAnglesWhenTheDefaultOnesMissTheTolerance) {
   MM_REQUIRE_SHARED_MESHES();
   Scratch s;
   const std::string in = shared_mesh("fandisk_quads.off"), def = s / "default.mmc", at35 = s / "35.mmc";
-  const CliRun r = meshmark(s, {"compress", in, def, "--json"});
-  ASSERT_EQ(r.code, 0) << r.err;
-  const json j = json::parse(r.out);
+  const json j = compress_json(s, {in, def});
+  ASSERT_FALSE(j.is_null());
   EXPECT_TRUE(j["tolerance_met"].get<bool>());
   EXPECT_EQ(j["angles_fitted"], json::parse("[35, 45, 55, 30]"));  // 25 and 20 not needed
   EXPECT_EQ(j["angle"].get<double>(), 30);
-  const CliRun c = meshmark(s, {"compare", in, def, "--json"});
-  ASSERT_EQ(c.code, 0) << c.err;
-  EXPECT_LE(json::parse(c.out)["hausdorff"].get<double>(), 0.005);
+  EXPECT_LE(compared_hausdorff(s, in, def), 0.005);
 
   const CliRun e = meshmark(s, {"compress", in, at35, "--angle", "35"});
   ASSERT_EQ(e.code, 0) << e.err;
@@ -680,16 +671,11 @@ TEST(CliCompress, CoarsensUnlessToldNot) {
   Scratch s;
   const std::string part = s / "flanged.off", coarse = s / "coarse.mmc", plain = s / "plain.mmc";
   ASSERT_EQ(meshmark(s, {"sample", "flanged-cylinder", part}).code, 0);
-  const CliRun r = meshmark(s, {"compress", part, coarse, "--json"});
-  ASSERT_EQ(r.code, 0) << r.err;
-  const CliRun p = meshmark(s, {"compress", part, plain, "--json", "--no-coarsen"});
-  ASSERT_EQ(p.code, 0) << p.err;
-  const json j = json::parse(r.out), jp = json::parse(p.out);
+  const json j = compress_json(s, {part, coarse}), jp = compress_json(s, {part, plain, "--no-coarsen"});
+  ASSERT_FALSE(j.is_null() || jp.is_null());
   EXPECT_TRUE(j["coarsen"].get<bool>());
   EXPECT_FALSE(jp["coarsen"].get<bool>());
   EXPECT_LT(j["control_vertices"].get<int>(), jp["control_vertices"].get<int>());
   EXPECT_LT(j["stream_bytes"].get<std::size_t>(), jp["stream_bytes"].get<std::size_t>());
-  const CliRun c = meshmark(s, {"compare", part, coarse, "--json"});
-  ASSERT_EQ(c.code, 0) << c.err;
-  EXPECT_LE(json::parse(c.out)["hausdorff"].get<double>(), 0.005);
+  EXPECT_LE(compared_hausdorff(s, part, coarse), 0.005);
 }
