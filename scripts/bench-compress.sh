@@ -72,6 +72,11 @@ with open(dst, 'w') as o:
 PY
 }
 
+# Where a part's stream for a seed is written (one seed: without it in the name).
+stream_path() {
+  if [ "$SEEDS" = 1 ]; then echo "$OUT/$1.mmc"; else echo "$OUT/$1.seed$2.mmc"; fi
+}
+
 printf '%-14s %4s %7s %8s %7s %9s %9s %7s %7s %7s | %5s %9s %9s | %7s\n' mesh seed in_vert ctrl_v bytes hausdorff rms \
   fit_s check_s bits_s qp draco_B draco_H ratio
 medians=()
@@ -80,8 +85,7 @@ ratios=()
 for name in $LIST; do
   in="$MESHES/$name"
   base="${name%.*}"
-  mmc="$OUT/$base.mmc"
-  [ "$SEEDS" = 1 ] || mmc="$OUT/$base.seed$seed.mmc"
+  mmc=$(stream_path "$base" "$seed")
   summary=$("$MESHMARK" compress "$in" "$mmc" --tolerance "$TOLERANCE" --max-vertices "$MAX_VERTICES" \
             ${BITS:+--bits "$BITS"} --seed "$seed" --json)
   bytes=$(stat -c %s "$mmc")
@@ -153,8 +157,7 @@ fast_ok=0 dec_ok=0 n_parts=0
 for name in $LIST; do
   in="$MESHES/$name"
   base="${name%.*}"
-  mmc="$OUT/$base.mmc"
-  [ "$SEEDS" = 1 ] || mmc="$OUT/$base.seed$first_seed.mmc"
+  mmc=$(stream_path "$base" "$first_seed")
   fast=$("$MESHMARK" compress "$in" "$OUT/$base.protect-path.mmc" --tolerance "$TOLERANCE" \
          --max-vertices "$MAX_VERTICES" --angle 35 --no-coarsen --threads 1 --seed 1 --json)
   read -r faces ctrl secs check rss < <(jq -r '"\(.input_faces) \(.control_vertices) \(.seconds - .verify_seconds) \(.verify_seconds) \(.peak_rss_mb)"' <<<"$fast")
