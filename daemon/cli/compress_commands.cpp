@@ -16,6 +16,7 @@
 #include <thread>
 #include <ctime>
 #include <sys/resource.h>
+#include <limits>
 #include <mutex>
 
 #include "cli/commands.h"
@@ -264,9 +265,11 @@ void add_compress_commands(CLI::App& app) {
       // fits of several angles run at once.
       double verify_seconds = 0;
       std::mutex verify_mutex;
-      options.verify = [&mesh, &verify_seconds, &verify_mutex, levels = a->o.levels](const Mesh& control) {
+      options.verify = [&mesh, &verify_seconds, &verify_mutex, levels = a->o.levels,
+                        tolerance = a->o.tolerance](const Mesh& control) {
         const double v0 = thread_cpu_seconds();
-        const double h = decoded_distance(mesh, control, levels).hausdorff_relative();
+        const auto d = decoded_distance_within(mesh, control, levels, tolerance);
+        const double h = d ? d->hausdorff_relative() : std::numeric_limits<double>::infinity();
         const std::lock_guard<std::mutex> lock(verify_mutex);
         verify_seconds += thread_cpu_seconds() - v0;
         return h;

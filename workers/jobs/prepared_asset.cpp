@@ -212,8 +212,9 @@ PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
     // them; the dense measurement the CLI reports decides here too, so a protected part meets
     // the configured tolerance by the same numbers `meshmark compress` and `compare` give.
     CompressOptions options = params.compression;
-    options.verify = [&original, levels = options.levels](const Mesh& control) {
-      return decoded_distance(original, control, levels).hausdorff_relative();
+    options.verify = [&original, levels = options.levels, tolerance = options.tolerance](const Mesh& control) {
+      const auto d = decoded_distance_within(original, control, levels, tolerance);
+      return d ? d->hausdorff_relative() : std::numeric_limits<double>::infinity();
     };
     a.compression = compress(original, options, source);
   } catch (const InputError&) {

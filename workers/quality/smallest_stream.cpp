@@ -48,11 +48,13 @@ constexpr double kCloseToTolerance = 1.1;
 // 0.495 %; abc6, 56 vertices at 9 bits, 0.571 -> 0.514 %), so from further off it is a measurement
 // spent for nothing.
 constexpr double kDescentReach = 1.15;
+// A measurement beyond the descent's reach stops there (smallest_stream's main loop).
+static_assert(kCloseToTolerance <= kDescentReach);
 // Start vertices tried for the chosen polyhedron's numbering (evenly spaced in its numbering).
 constexpr int kStarts = 64;
 
 MeasuredStream snap_search(const Mesh& part, const Mesh& control, int levels, CodecParams params, double tolerance,
-                          std::size_t smaller_than, const std::function<bool(const SurfaceDistance&)>& meets,
+                          std::size_t smaller_than, const std::function<std::optional<SurfaceDistance>(const Mesh&)>& met,
                           const std::string& name) {
   // The slack is a guide (the measurement decides), so a quarter of the dense samples will do.
   SamplingParams guide;
@@ -70,10 +72,9 @@ MeasuredStream snap_search(const Mesh& part, const Mesh& control, int levels, Co
     std::vector<std::uint8_t> bytes = encode(control, snapping);
     for (int repair = 0; bytes.size() < smaller_than; ++repair) {
       DecodedStream snapped = decode(bytes, name);
-      const SurfaceDistance d = decoded_distance(part, snapped.mesh, levels);
-      if (meets(d)) {
+      if (const auto d = met(snapped.mesh)) {
         smaller_than = bytes.size();
-        best = {std::move(bytes), d};
+        best = {std::move(bytes), *d};
         break;
       }
       if (repair == kSnapRepairs) break;
@@ -103,8 +104,8 @@ MeasuredStream snap_search(const Mesh& part, const Mesh& control, int levels, Co
 // smallest stream is 1-3 % below the first (blade 1177 -> 1156 bytes, abc6 207 -> 203). The
 // surface is the same, but a smaller stream is measured again, so that the distance reported is
 // the written stream's. Returns no bytes when no start codes smaller.
-MeasuredStream cheapest_numbering(const Mesh& part, const std::vector<std::uint8_t>& stream, int bits, CodecParams params,
-                                 int levels, const std::function<bool(const SurfaceDistance&)>& meets,
+MeasuredStream cheapest_numbering(const std::vector<std::uint8_t>& stream, int bits, CodecParams params,
+                                 const std::function<std::optional<SurfaceDistance>(const Mesh&)>& met,
                                  const std::string& name) {
   const DecodedStream written = decode(stream, name);
   params.quant_bits = bits;
@@ -115,9 +116,9 @@ MeasuredStream cheapest_numbering(const Mesh& part, const std::vector<std::uint8
     if (bytes.size() < (best.empty() ? stream.size() : best.size())) best = std::move(bytes);
   }
   if (best.empty()) return {};
-  const SurfaceDistance d = decoded_distance(part, decode(best, name).mesh, levels);
-  if (!meets(d)) return {};
-  return {std::move(best), d};
+  const auto d = met(decode(best, name).mesh);
+  if (!d) return {};
+  return {std::move(best), *d};
 }
 
 }  // namespace
@@ -139,6 +140,18 @@ ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& p
   const std::function<bool(const SurfaceDistance&)> meets = [&search](const SurfaceDistance& m) {
     return m.hausdorff_relative() <= search.tolerance &&
            (search.rms_tolerance <= 0 || m.rms_relative() <= search.rms_tolerance);
+  };
+  // The decoded surface's distance, or nothing when it is known to exceed `limit` times the
+  // tolerance (decoded_distance_within: a surface far off costs a few samples, not all).
+  const auto measure = [&part, &search](const Mesh& decoded, double limit) {
+    return decoded_distance_within(part, decoded, search.levels, limit * search.tolerance);
+  };
+  // The distance of a surface that meets the tolerances, or nothing.
+  const std::function<std::optional<SurfaceDistance>(const Mesh&)> met =
+      [&measure, &meets](const Mesh& decoded) -> std::optional<SurfaceDistance> {
+    auto d = measure(decoded, 1.0);
+    if (d && meets(*d)) return d;
+    return std::nullopt;
   };
   CodecParams params;
   params.metadata = search.metadata;
@@ -168,7 +181,13 @@ ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& p
       p.quant_bits = b;
       auto candidate = encode(control, p);
       if (out.meets && candidate.size() >= out.bytes.size()) break;
-      const SurfaceDistance m = decoded_distance(part, decode(candidate, name).mesh, search.levels);
+      // Beyond the descent's reach (and kCloseToTolerance below it) a miss is all the search
+      // needs to know, unless it is the stream written when nothing meets the tolerance.
+      const bool fallback = !out.meets && b == bound && out.bytes.empty();
+      const auto measured = measure(decode(candidate, name).mesh,
+                                    fallback ? std::numeric_limits<double>::infinity() : kDescentReach);
+      if (!measured) continue;
+      const SurfaceDistance& m = *measured;
       if (b == bound) at_bound[k] = m.hausdorff_relative();
       // Nothing met yet: keep the first polyhedron's last tried, so that something is written.
       if (meets(m) || (!out.meets && b == bound && out.bytes.empty())) {
@@ -182,9 +201,8 @@ ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& p
         Mesh on_grid = descended_on_grid(control, b, search.levels);
         auto bytes = encode(on_grid, p);
         if (out.meets && bytes.size() >= out.bytes.size()) break;
-        const SurfaceDistance md = decoded_distance(part, decode(bytes, name).mesh, search.levels);
-        if (meets(md)) {
-          keep(std::move(bytes), md, b, k, std::move(on_grid));
+        if (const auto md = met(decode(bytes, name).mesh)) {
+          keep(std::move(bytes), *md, b, k, std::move(on_grid));
           break;
         }
       }
@@ -202,8 +220,7 @@ ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& p
       for (int b = conservative_bits(control, search.tolerance) + 2; b <= kMaxQuantBits && !out.meets; b += 2) {
         p.quant_bits = b;
         auto candidate = encode(control, p);
-        const SurfaceDistance m = decoded_distance(part, decode(candidate, name).mesh, search.levels);
-        if (meets(m)) keep(std::move(candidate), m, b, k, std::nullopt);
+        if (const auto m = met(decode(candidate, name).mesh)) keep(std::move(candidate), *m, b, k, std::nullopt);
       }
     }
   }
@@ -211,7 +228,7 @@ ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& p
   // bits and one more: each snapped stream is decoded and measured like the plain ones, and the
   // smallest that meets the tolerances wins (the plain one included), numbered cheapest too.
   const auto renumber = [&]() {
-    MeasuredStream c = cheapest_numbering(part, out.bytes, out.bits, params, search.levels, meets, name);
+    MeasuredStream c = cheapest_numbering(out.bytes, out.bits, params, met, name);
     if (c.bytes.empty()) return;
     out.bytes = std::move(c.bytes);
     out.distance = c.distance;
@@ -225,7 +242,7 @@ ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& p
     for (int bits = out.bits; bits <= top; ++bits) {
       CodecParams at = params;
       at.quant_bits = bits;
-      MeasuredStream s = snap_search(part, control, search.levels, at, tolerance, out.bytes.size(), meets, name);
+      MeasuredStream s = snap_search(part, control, search.levels, at, tolerance, out.bytes.size(), met, name);
       if (s.bytes.empty()) continue;
       out.bytes = std::move(s.bytes);
       out.distance = s.distance;

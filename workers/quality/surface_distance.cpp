@@ -3,6 +3,8 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <memory>
 #include <random>
 #include <string>
 
@@ -86,48 +88,108 @@ std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::
   return out;
 }
 
-OneSidedDistance one_sided_distance(const Mesh& from, const Mesh& to, const SamplingParams& params) {
-  const std::vector<Tri> target = triangles(to);
-  std::vector<std::array<Eigen::Vector3d, 3>> corners;
-  corners.reserve(target.size());
-  for (const Tri& t : target) corners.push_back({t.a, t.b, t.c});
-  const TriangleDistanceTree tree(corners);
+namespace {
 
-  const auto points = sample_surface(from, params.samples, params.seed, params.include_vertices);
-  if (points.empty()) throw InputError("quality", "no samples: give samples > 0 or include vertices");
-  OneSidedDistance d;
-  double sum = 0, sum_sq = 0;
-  // Consecutive samples lie on the same or neighbouring triangles: each query starts from the
-  // previous answer.
-  int hint = -1;
-  for (const auto& p : points) {
-    const double sq = tree.squared_distance(p, hint);
-    const double dist = std::sqrt(sq);
-    d.max = std::max(d.max, dist);
-    sum += dist;
-    sum_sq += sq;
+// One direction of a measurement: the samples of one surface and the tree of the other. Each
+// sample's distance does not depend on the order the samples are measured in (the tree's hint
+// only speeds a query up), and the statistics are summed in sample order, so a measurement in
+// passes gives the numbers of one in sample order.
+class Direction {
+ public:
+  Direction(const Mesh& from, const Mesh& to, const SamplingParams& params) {
+    const std::vector<Tri> target = triangles(to);
+    std::vector<std::array<Eigen::Vector3d, 3>> corners;
+    corners.reserve(target.size());
+    for (const Tri& t : target) corners.push_back({t.a, t.b, t.c});
+    tree_ = std::make_unique<TriangleDistanceTree>(corners);
+    points_ = sample_surface(from, params.samples, params.seed, params.include_vertices);
+    if (points_.empty()) throw InputError("quality", "no samples: give samples > 0 or include vertices");
+    squared_.assign(points_.size(), 0.0);
   }
-  d.samples = points.size();
-  d.mean = sum / static_cast<double>(points.size());
-  d.rms = std::sqrt(sum_sq / static_cast<double>(points.size()));
-  return d;
+  // Measures samples 0, stride, 2 stride, ... but those a pass with stride `coarser` measured
+  // (0: none). False as soon as one lies farther than limit * diagonal (exactly as
+  // hausdorff_relative() compares: distance / diagonal).
+  bool measure(std::size_t stride, std::size_t coarser, double limit, double diagonal) {
+    for (std::size_t i = 0; i < points_.size(); i += stride) {
+      if (coarser > 0 && i % coarser == 0) continue;
+      // Consecutive samples lie on the same or neighbouring triangles: each query starts from
+      // the previous answer.
+      squared_[i] = tree_->squared_distance(points_[i], hint_);
+      if (std::sqrt(squared_[i]) / diagonal > limit) return false;
+    }
+    return true;
+  }
+  OneSidedDistance stats() const {
+    OneSidedDistance d;
+    double sum = 0, sum_sq = 0;
+    for (double sq : squared_) {
+      const double dist = std::sqrt(sq);
+      d.max = std::max(d.max, dist);
+      sum += dist;
+      sum_sq += sq;
+    }
+    d.samples = points_.size();
+    d.mean = sum / static_cast<double>(points_.size());
+    d.rms = std::sqrt(sum_sq / static_cast<double>(points_.size()));
+    return d;
+  }
+
+ private:
+  std::unique_ptr<TriangleDistanceTree> tree_;
+  std::vector<Eigen::Vector3d> points_;
+  std::vector<double> squared_;
+  int hint_ = -1;
+};
+
+// Strides of the passes of a measurement with a limit: a surface far off shows in the first.
+constexpr std::size_t kPasses[] = {64, 16, 4, 1};
+
+}  // namespace
+
+OneSidedDistance one_sided_distance(const Mesh& from, const Mesh& to, const SamplingParams& params) {
+  Direction d(from, to, params);
+  d.measure(1, 0, std::numeric_limits<double>::infinity(), 1.0);
+  return d.stats();
 }
 
 SurfaceDistance decoded_distance(const Mesh& part, const Mesh& control, int levels, const SamplingParams& params) {
   return surface_distance(part, decompress_to_level(control, levels), params);
 }
 
+std::optional<SurfaceDistance> decoded_distance_within(const Mesh& part, const Mesh& control, int levels, double limit,
+                                                       const SamplingParams& params) {
+  return surface_distance_within(part, decompress_to_level(control, levels), limit, params);
+}
+
 SurfaceDistance surface_distance(const Mesh& a, const Mesh& b, const SamplingParams& params) {
+  return *surface_distance_within(a, b, std::numeric_limits<double>::infinity(), params);
+}
+
+std::optional<SurfaceDistance> surface_distance_within(const Mesh& a, const Mesh& b, double limit,
+                                                       const SamplingParams& params) {
   SurfaceDistance s;
-  s.a_to_b = one_sided_distance(a, b, params);
+  s.diagonal = diagonal_of(a);
+  Direction ab(a, b, params);
   // A different seed for the other direction keeps the two sample sets independent.
   SamplingParams back = params;
   back.seed = params.seed ^ 0x9E3779B97F4A7C15ull;
-  s.b_to_a = one_sided_distance(b, a, back);
+  Direction ba(b, a, back);
+  if (std::isinf(limit)) {
+    ab.measure(1, 0, limit, s.diagonal);
+    ba.measure(1, 0, limit, s.diagonal);
+  } else {
+    std::size_t coarser = 0;
+    for (std::size_t stride : kPasses) {
+      if (!ab.measure(stride, coarser, limit, s.diagonal) || !ba.measure(stride, coarser, limit, s.diagonal))
+        return std::nullopt;
+      coarser = stride;
+    }
+  }
+  s.a_to_b = ab.stats();
+  s.b_to_a = ba.stats();
   s.hausdorff = std::max(s.a_to_b.max, s.b_to_a.max);
   s.rms = std::max(s.a_to_b.rms, s.b_to_a.rms);
   s.mean = std::max(s.a_to_b.mean, s.b_to_a.mean);
-  s.diagonal = diagonal_of(a);
   return s;
 }
 

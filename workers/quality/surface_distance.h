@@ -5,6 +5,7 @@
 #pragma once
 #include <Eigen/Core>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "meshio/mesh.h"
@@ -44,10 +45,23 @@ std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::
 OneSidedDistance one_sided_distance(const Mesh& from, const Mesh& to, const SamplingParams& params = {});
 SurfaceDistance surface_distance(const Mesh& a, const Mesh& b, const SamplingParams& params = {});
 
+// surface_distance for a caller that only needs it when the symmetric Hausdorff distance is at
+// most `limit` times a's diagonal (a tolerance check): nothing as soon as one sample lies
+// farther, which then proves it larger. The samples are measured every 64th first, then every
+// 16th, 4th and the rest, so a surface far off is turned away after a few of them (in the
+// compress search a third of the measurements are); within the limit the numbers are
+// surface_distance's, bit for bit (a sample's distance does not depend on the order, and the
+// statistics are summed in sample order). An infinite limit measures everything.
+std::optional<SurfaceDistance> surface_distance_within(const Mesh& a, const Mesh& b, double limit,
+                                                       const SamplingParams& params = {});
+
 // What a receiver of a control polyhedron sees against the part it stands for: `control`
 // subdivided `levels` times (subdivision/decompress.h), measured from `part` as above. The one
 // measurement behind compress's tolerance, its bit choice and protect jobs.
 SurfaceDistance decoded_distance(const Mesh& part, const Mesh& control, int levels,
                                  const SamplingParams& params = {});
+// The same, or nothing once it is known to exceed `limit` (surface_distance_within).
+std::optional<SurfaceDistance> decoded_distance_within(const Mesh& part, const Mesh& control, int levels,
+                                                       double limit, const SamplingParams& params = {});
 
 }  // namespace mm
