@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <map>
+#include <memory>
 #include <set>
 
 #include "fitting/collapse_control.h"
@@ -119,6 +120,39 @@ TEST(Coarsen, FewerVerticesWithinTheTolerance) {
   const mm::CompressResult again = mm::compress(part, o, "flanged_cylinder");
   EXPECT_TRUE(again.control.points == coarse.control.points);
   EXPECT_EQ(again.control.faces, coarse.control.faces);
+}
+
+// The two steps a caller comparing crease angles uses: the rounds, then the coarsening of the
+// angle it picks, give compress()'s results bit for bit, the rounds' without coarsening and the
+// coarsening's with it; the state is reusable (coarsening twice gives the same).
+TEST(Coarsen, RoundsThenCoarseningAreCompressInTwoSteps) {
+  const mm::Mesh part = mm::samples::flanged_cylinder();
+  mm::CompressOptions o;
+  o.verify = [&part, &o](const mm::Mesh& control) {
+    return mm::decoded_distance(part, control, o.levels).hausdorff_relative();
+  };
+  o.coarsen = true;
+  std::shared_ptr<const mm::CompressState> state;
+  const mm::CompressResult rounds = mm::compress_rounds(part, o, "flanged_cylinder", state);
+  ASSERT_NE(state, nullptr);
+  const mm::CompressResult coarse = mm::coarsen_rounds(*state);
+  const auto same = [](const mm::CompressResult& a, const mm::CompressResult& b) {
+    ASSERT_EQ(a.candidates.size(), b.candidates.size());
+    for (size_t k = 0; k < a.candidates.size(); ++k) {
+      EXPECT_TRUE(a.candidates[k].control.points == b.candidates[k].control.points) << k;
+      EXPECT_EQ(a.candidates[k].control.faces, b.candidates[k].control.faces) << k;
+      EXPECT_EQ(a.candidates[k].stats.hausdorff, b.candidates[k].stats.hausdorff) << k;
+    }
+    EXPECT_TRUE(a.control.points == b.control.points);
+    EXPECT_EQ(a.control.creases, b.control.creases);
+    EXPECT_EQ(a.rounds, b.rounds);
+    EXPECT_EQ(a.tolerance_met, b.tolerance_met);
+  };
+  same(coarse, mm::compress(part, o, "flanged_cylinder"));
+  same(mm::coarsen_rounds(*state), coarse);
+  o.coarsen = false;
+  same(rounds, mm::compress(part, o, "flanged_cylinder"));
+  EXPECT_LT(coarse.control.num_vertices(), rounds.control.num_vertices());
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <numeric>
 #include <optional>
 #include <string>
@@ -152,8 +153,35 @@ Features compress_features(const Mesh& input, const CompressOptions& o, const st
   return features_of(in_unit_box(input, o, source, &n), o);
 }
 
-CompressResult compress(const Mesh& input, const CompressOptions& o, const std::string& source) {
-  CompressResult out;
+// What compress() carries from its rounds to the coarsening and to its result, in the unit box.
+struct CompressState {
+  CompressOptions options;
+  CompressResult out;  // the counts, the normalisation, the rounds so far
+  std::unique_ptr<FitTarget> target;
+  FitOptions fit;
+  FitResult best;  // the fewest vertices among rounds that met the tolerance, else the smallest error
+  bool best_fits = false;
+  std::vector<CompressCandidate> fitting;  // every round's polyhedron that met the tolerance
+  int first_round_vertices = 0;
+};
+
+namespace {
+
+// The fit samples its surface at the refined vertices; a caller's denser measurement of a
+// candidate (in the part's units) has the last word.
+bool confirmed(const CompressState& s, const Mesh& unit_box_control) {
+  if (!s.options.verify) return true;
+  Mesh candidate = unit_box_control;
+  undo(s.out.normalization, candidate.points);
+  return s.options.verify(candidate) <= s.options.tolerance;
+}
+
+// The decimate-and-fit rounds.
+std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptions& o, const std::string& source) {
+  auto state = std::make_unique<CompressState>();
+  CompressState& st = *state;
+  st.options = o;
+  CompressResult& out = st.out;
   const Mesh mesh = in_unit_box(input, o, source, &out.normalization);
   out.levels = o.levels;
   out.input_vertices = input.num_vertices();
@@ -178,27 +206,21 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
   // Start small (the corners, a little per patch); rounds add vertices where they are needed.
   co.target_vertices = std::min(
       o.max_vertices, std::max(24, static_cast<int>(features.corners.size()) + seg.num_patches + 16));
-  const int first_round_vertices = co.target_vertices;
+  st.first_round_vertices = co.target_vertices;
   co.importance.assign(mesh.num_vertices(), 1.0);
-  FitOptions fit;
+  FitOptions& fit = st.fit;
   fit.seed = o.seed;
   fit.levels = o.levels;
-  // The target's trees and samples are the same in every round.
-  const FitTarget target(mesh, features, fit);
+  // The target's trees and samples are the same in every round (and in the coarsening).
+  st.target = std::make_unique<FitTarget>(mesh, features, fit);
+  const FitTarget& target = *st.target;
   // Rounds that keep the importance and lower the vertex count continue the last decimation.
   ControlDecimation decimation(mesh, features, seg);
 
-  // The fit samples its surface at the refined vertices; a caller's denser measurement of a
-  // candidate (in the part's units) has the last word.
-  const auto confirmed = [&o, &out](const Mesh& unit_box_control) {
-    if (!o.verify) return true;
-    Mesh candidate = unit_box_control;
-    undo(out.normalization, candidate.points);
-    return o.verify(candidate) <= o.tolerance;
-  };
-  bool have = false, best_fits = false;
-  FitResult best;
-  std::vector<CompressCandidate> fitting;  // every round's polyhedron that met the tolerance, unit box
+  bool have = false;
+  bool& best_fits = st.best_fits;
+  FitResult& best = st.best;
+  std::vector<CompressCandidate>& fitting = st.fitting;
   // Vertex counts that failed (largest) and met the tolerance (smallest) so far: once a round
   // meets it, the rounds left bisect between the two, since the growth step may overshoot.
   int failed_n = 0, fit_n = 0;
@@ -224,7 +246,7 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
         result_error = variant.region_error;
         rel = error;
       }
-      const bool variant_fits = error <= o.tolerance && confirmed(variant.control);
+      const bool variant_fits = error <= o.tolerance && confirmed(st, variant.control);
       if (variant_fits) fitting.push_back({variant.control, variant.stats});
       // Best: the fewest vertices among rounds that fit, else the smallest error.
       if (!have || (variant_fits && (!best_fits || n < best.control.num_vertices())) ||
@@ -279,11 +301,17 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
     co.target_vertices = std::min(o.max_vertices, static_cast<int>(std::ceil(co.target_vertices * grow)));
   }
 
-  if (o.coarsen && best_fits) {
+  return state;
+}
+
+// The coarsening of the rounds' best polyhedron (which it replaces) and its candidates (added).
+void coarsen_best(const CompressState& st, FitResult& best, std::vector<CompressCandidate>& fitting) {
+  const CompressOptions& o = st.options;
+  {
     // Candidates for the stream: per headroom level, the smallest polyhedron whose fit error is
     // within that fraction of the tolerance (a polyhedron at the tolerance needs a fine grid, one
     // with headroom may take a coarser one). The dense measurement decides.
-    std::vector<FitResult> chain = coarsen(best, target, fit, o.tolerance, first_round_vertices);
+    std::vector<FitResult> chain = coarsen(st.best, *st.target, st.fit, o.tolerance, st.first_round_vertices);
     std::vector<char> taken(chain.size(), 0);
     bool first = true;
     for (double level : kCoarsenLevels) {
@@ -291,7 +319,7 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
         if (chain[i].stats.hausdorff / chain[i].stats.diagonal > level * o.tolerance) continue;
         if (taken[i]) break;
         ++tries;
-        if (!confirmed(chain[i].control)) continue;
+        if (!confirmed(st, chain[i].control)) continue;
         taken[i] = 1;
         fitting.push_back({chain[i].control, chain[i].stats});
         if (first) best = chain[i];
@@ -301,6 +329,11 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
     }
   }
 
+}
+
+// The result: `best` and the candidates `fitting` back in the part's units, numbered for the stream.
+CompressResult result_of(const CompressState& st, const FitResult& best, std::vector<CompressCandidate> fitting) {
+  CompressResult out = st.out;
   // Back to the part's units.
   const auto in_part_units = [&](FitStats s) {
     for (double* x : {&s.hausdorff, &s.rms, &s.mean, &s.diagonal}) *x /= out.normalization.scale;
@@ -314,7 +347,7 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
   std::stable_sort(fitting.begin(), fitting.end(), [](const CompressCandidate& a, const CompressCandidate& b) {
     return a.control.num_vertices() < b.control.num_vertices();
   });
-  if (best_fits) out.candidates.push_back({out.control, out.stats});
+  if (st.best_fits) out.candidates.push_back({out.control, out.stats});
   for (const CompressCandidate& c : fitting) {
     if (c.control.points.rows() == best.control.points.rows() && c.control.points == best.control.points) continue;
     CompressCandidate p{in_traversal_order(c.control), in_part_units(c.stats)};
@@ -322,6 +355,33 @@ CompressResult compress(const Mesh& input, const CompressOptions& o, const std::
     out.candidates.push_back(std::move(p));
   }
   return out;
+}
+
+}  // namespace
+
+CompressResult compress(const Mesh& input, const CompressOptions& o, const std::string& source) {
+  const std::unique_ptr<CompressState> st = fit_rounds(input, o, source);
+  if (!o.coarsen || !st->best_fits) return result_of(*st, st->best, st->fitting);
+  FitResult best = st->best;
+  std::vector<CompressCandidate> fitting = st->fitting;
+  coarsen_best(*st, best, fitting);
+  return result_of(*st, best, std::move(fitting));
+}
+
+CompressResult compress_rounds(const Mesh& input, const CompressOptions& o, const std::string& source,
+                               std::shared_ptr<const CompressState>& state) {
+  std::unique_ptr<CompressState> st = fit_rounds(input, o, source);
+  CompressResult out = result_of(*st, st->best, st->fitting);
+  state = std::move(st);
+  return out;
+}
+
+CompressResult coarsen_rounds(const CompressState& st) {
+  if (!st.best_fits) return result_of(st, st.best, st.fitting);
+  FitResult best = st.best;
+  std::vector<CompressCandidate> fitting = st.fitting;
+  coarsen_best(st, best, fitting);
+  return result_of(st, best, std::move(fitting));
 }
 
 }  // namespace mm

@@ -6,6 +6,7 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 
 #include "fitting/fit_control_points.h"
@@ -72,6 +73,17 @@ struct CompressResult {
 // mesh above twice max_vertices (checked before any fitting).
 CompressResult compress(const Mesh& mesh, const CompressOptions& options = {},
                         const std::string& source = "mesh");
+
+// compress() in two steps, for a caller that compares the rounds of several crease angles before
+// it spends the coarsening (3-5 times the rounds' time) on one. compress_rounds() is compress()
+// without the coarsening, whatever options.coarsen says, and hands back in `state` what the
+// coarsening needs (the target's trees, the rounds' polyhedra, the options with their verify);
+// coarsen_rounds(*state) then gives bit for bit what compress() with coarsen = true gives.
+// `state` must not outlive what options.verify refers to.
+struct CompressState;
+CompressResult compress_rounds(const Mesh& mesh, const CompressOptions& options, const std::string& source,
+                               std::shared_ptr<const CompressState>& state);
+CompressResult coarsen_rounds(const CompressState& state);
 
 // Whether a result stopped at the control vertex budget (nine tenths of it or more), rather than
 // in its refinement rounds below it (often an error that stopped falling: a fold flatter than the
