@@ -577,6 +577,9 @@ TEST(CliCompress, FitsEachCreaseNetworkOfItsAnglesAndKeepsTheSmallest) {
   EXPECT_LT(j35["stream_bytes"].get<std::size_t>(), j45["stream_bytes"].get<std::size_t>());
   EXPECT_EQ(j["angle"].get<double>(), 35);
   EXPECT_EQ(js["angle"].get<double>(), 35);
+  // The coarsening is spent on the angle whose rounds met the tolerance with the fewest
+  // vertices, the only one here.
+  EXPECT_EQ(j["coarsened_angle"].get<double>(), 35);
   EXPECT_TRUE(j["tolerance_met"].get<bool>());
   const auto bytes = [](const std::string& f) { return mm::read_stream_file(f); };
   EXPECT_EQ(bytes(both), bytes(at35));
@@ -675,6 +678,8 @@ TEST(CliCompress, CoarsensUnlessToldNot) {
   ASSERT_FALSE(j.is_null() || jp.is_null());
   EXPECT_TRUE(j["coarsen"].get<bool>());
   EXPECT_FALSE(jp["coarsen"].get<bool>());
+  EXPECT_EQ(j["coarsened_angle"].get<double>(), j["angle"].get<double>());
+  EXPECT_TRUE(jp["coarsened_angle"].is_null());
   EXPECT_LT(j["control_vertices"].get<int>(), jp["control_vertices"].get<int>());
   EXPECT_LT(j["stream_bytes"].get<std::size_t>(), jp["stream_bytes"].get<std::size_t>());
   EXPECT_LE(compared_hausdorff(s, part, coarse), 0.005);
