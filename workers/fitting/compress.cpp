@@ -307,28 +307,25 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
 // The coarsening of the rounds' best polyhedron (which it replaces) and its candidates (added).
 void coarsen_best(const CompressState& st, FitResult& best, std::vector<CompressCandidate>& fitting) {
   const CompressOptions& o = st.options;
-  {
-    // Candidates for the stream: per headroom level, the smallest polyhedron whose fit error is
-    // within that fraction of the tolerance (a polyhedron at the tolerance needs a fine grid, one
-    // with headroom may take a coarser one). The dense measurement decides.
-    std::vector<FitResult> chain = coarsen(st.best, *st.target, st.fit, o.tolerance, st.first_round_vertices);
-    std::vector<char> taken(chain.size(), 0);
-    bool first = true;
-    for (double level : kCoarsenLevels) {
-      for (int i = static_cast<int>(chain.size()) - 1, tries = 0; i >= 0 && tries < 3; --i) {
-        if (chain[i].stats.hausdorff / chain[i].stats.diagonal > level * o.tolerance) continue;
-        if (taken[i]) break;
-        ++tries;
-        if (!confirmed(st, chain[i].control)) continue;
-        taken[i] = 1;
-        fitting.push_back({chain[i].control, chain[i].stats});
-        if (first) best = chain[i];
-        first = false;
-        break;
-      }
+  // Candidates for the stream: per headroom level, the smallest polyhedron whose fit error is
+  // within that fraction of the tolerance (a polyhedron at the tolerance needs a fine grid, one
+  // with headroom may take a coarser one). The dense measurement decides.
+  std::vector<FitResult> chain = coarsen(st.best, *st.target, st.fit, o.tolerance, st.first_round_vertices);
+  std::vector<char> taken(chain.size(), 0);
+  bool first = true;
+  for (double level : kCoarsenLevels) {
+    for (int i = static_cast<int>(chain.size()) - 1, tries = 0; i >= 0 && tries < 3; --i) {
+      if (chain[i].stats.hausdorff / chain[i].stats.diagonal > level * o.tolerance) continue;
+      if (taken[i]) break;
+      ++tries;
+      if (!confirmed(st, chain[i].control)) continue;
+      taken[i] = 1;
+      fitting.push_back({chain[i].control, chain[i].stats});
+      if (first) best = chain[i];
+      first = false;
+      break;
     }
   }
-
 }
 
 // The result: `best` and the candidates `fitting` back in the part's units, numbered for the stream.
@@ -361,11 +358,7 @@ CompressResult result_of(const CompressState& st, const FitResult& best, std::ve
 
 CompressResult compress(const Mesh& input, const CompressOptions& o, const std::string& source) {
   const std::unique_ptr<CompressState> st = fit_rounds(input, o, source);
-  if (!o.coarsen || !st->best_fits) return result_of(*st, st->best, st->fitting);
-  FitResult best = st->best;
-  std::vector<CompressCandidate> fitting = st->fitting;
-  coarsen_best(*st, best, fitting);
-  return result_of(*st, best, std::move(fitting));
+  return o.coarsen ? coarsen_rounds(*st) : result_of(*st, st->best, st->fitting);
 }
 
 CompressResult compress_rounds(const Mesh& input, const CompressOptions& o, const std::string& source,
