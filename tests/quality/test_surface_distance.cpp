@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <array>
+#include <limits>
 #include <map>
 
 #include "common/shared_meshes.h"
@@ -196,4 +197,39 @@ TEST(SurfaceDistance, RealPartMovedSlightly) {
   EXPECT_GT(d.hausdorff, 0.9 * move.norm());
   EXPECT_GT(d.mean, 0.2 * move.norm());
   EXPECT_NEAR(d.hausdorff_relative(), d.hausdorff / diag, 1e-15);
+}
+
+// A tolerance check (surface_distance_within): within the limit, surface_distance's numbers bit
+// for bit, the limit itself included; beyond it, nothing, whether one sample or all of them lie
+// beyond (a bump on one face of a sphere, or the whole sphere scaled).
+TEST(SurfaceDistance, WithinALimitTheSameNumbersBeyondItNothing) {
+  const mm::Mesh s = icosphere(3);
+  mm::Mesh bumped = s;
+  bumped.points.row(0) *= 1.2;  // one vertex out: a narrow cone on one side
+  mm::Mesh big = s;
+  big.points *= 1.1;
+  for (const mm::Mesh* other : {&bumped, &big}) {
+    const mm::SurfaceDistance whole = mm::surface_distance(s, *other, fast());
+    const double h = whole.hausdorff_relative();
+    ASSERT_GT(h, 0);
+    for (double limit : {h, 2 * h, std::numeric_limits<double>::infinity()}) {
+      const auto d = mm::surface_distance_within(s, *other, limit, fast());
+      ASSERT_TRUE(d.has_value()) << limit;
+      EXPECT_EQ(d->hausdorff, whole.hausdorff);
+      EXPECT_EQ(d->rms, whole.rms);
+      EXPECT_EQ(d->mean, whole.mean);
+      EXPECT_EQ(d->a_to_b.mean, whole.a_to_b.mean);
+      EXPECT_EQ(d->b_to_a.rms, whole.b_to_a.rms);
+      EXPECT_EQ(d->a_to_b.samples, whole.a_to_b.samples);
+    }
+    EXPECT_FALSE(mm::surface_distance_within(s, *other, std::nextafter(h, 0.0), fast()).has_value());
+    EXPECT_FALSE(mm::surface_distance_within(s, *other, 0.5 * h, fast()).has_value());
+  }
+  // The decoded form measures the subdivided control mesh, as decoded_distance does.
+  const mm::Mesh control = icosphere(1);
+  const mm::SurfaceDistance whole = mm::decoded_distance(s, control, 2, fast());
+  const auto d = mm::decoded_distance_within(s, control, 2, whole.hausdorff_relative(), fast());
+  ASSERT_TRUE(d.has_value());
+  EXPECT_EQ(d->rms, whole.rms);
+  EXPECT_FALSE(mm::decoded_distance_within(s, control, 2, 0.5 * whole.hausdorff_relative(), fast()).has_value());
 }
