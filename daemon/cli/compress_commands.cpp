@@ -16,7 +16,6 @@
 #include <thread>
 #include <ctime>
 #include <sys/resource.h>
-#include <limits>
 #include <mutex>
 
 #include "cli/commands.h"
@@ -290,8 +289,7 @@ void add_compress_commands(CLI::App& app) {
       options.verify = [&mesh, &verify_seconds, &verify_mutex, levels = a->o.levels,
                         tolerance = a->o.tolerance](const Mesh& control) {
         const double v0 = thread_cpu_seconds();
-        const auto d = decoded_distance_within(mesh, control, levels, tolerance);
-        const double h = d ? d->hausdorff_relative() : std::numeric_limits<double>::infinity();
+        const double h = decoded_hausdorff_within(mesh, control, levels, tolerance);
         const std::lock_guard<std::mutex> lock(verify_mutex);
         verify_seconds += thread_cpu_seconds() - v0;
         return h;

@@ -232,4 +232,8 @@ TEST(SurfaceDistance, WithinALimitTheSameNumbersBeyondItNothing) {
   ASSERT_TRUE(d.has_value());
   EXPECT_EQ(d->rms, whole.rms);
   EXPECT_FALSE(mm::decoded_distance_within(s, control, 2, 0.5 * whole.hausdorff_relative(), fast()).has_value());
+  // As a compress verify: the relative Hausdorff distance, or +infinity beyond the limit.
+  const double h = mm::decoded_distance(s, control, 2).hausdorff_relative();
+  EXPECT_EQ(mm::decoded_hausdorff_within(s, control, 2, h), h);
+  EXPECT_TRUE(std::isinf(mm::decoded_hausdorff_within(s, control, 2, 0.5 * h)));
 }

@@ -213,8 +213,7 @@ PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
     // the configured tolerance by the same numbers `meshmark compress` and `compare` give.
     CompressOptions options = params.compression;
     options.verify = [&original, levels = options.levels, tolerance = options.tolerance](const Mesh& control) {
-      const auto d = decoded_distance_within(original, control, levels, tolerance);
-      return d ? d->hausdorff_relative() : std::numeric_limits<double>::infinity();
+      return decoded_hausdorff_within(original, control, levels, tolerance);
     };
     a.compression = compress(original, options, source);
   } catch (const InputError&) {

@@ -161,6 +161,11 @@ std::optional<SurfaceDistance> decoded_distance_within(const Mesh& part, const M
   return surface_distance_within(part, decompress_to_level(control, levels), limit, params);
 }
 
+double decoded_hausdorff_within(const Mesh& part, const Mesh& control, int levels, double limit) {
+  const auto d = decoded_distance_within(part, control, levels, limit);
+  return d ? d->hausdorff_relative() : std::numeric_limits<double>::infinity();
+}
+
 SurfaceDistance surface_distance(const Mesh& a, const Mesh& b, const SamplingParams& params) {
   return *surface_distance_within(a, b, std::numeric_limits<double>::infinity(), params);
 }

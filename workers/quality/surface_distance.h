@@ -63,5 +63,8 @@ SurfaceDistance decoded_distance(const Mesh& part, const Mesh& control, int leve
 // The same, or nothing once it is known to exceed `limit` (surface_distance_within).
 std::optional<SurfaceDistance> decoded_distance_within(const Mesh& part, const Mesh& control, int levels,
                                                        double limit, const SamplingParams& params = {});
+// Its relative Hausdorff distance, or +infinity once it is known to exceed `limit`: what a
+// CompressOptions::verify for the tolerance `limit` returns (compress only compares it).
+double decoded_hausdorff_within(const Mesh& part, const Mesh& control, int levels, double limit);
 
 }  // namespace mm
