@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <memory>
 #include <cstdio>
 #include <random>
@@ -242,19 +243,34 @@ void print_scores(const std::string& what, const std::string& method, const Verd
 
 TEST_F(ProtectDetect, CalibratedPValueOfUnmarkedAndRetessellatedSurfaces) {
   // Unmarked surfaces through the surface fit: the calibrated p says "chance", like the binomial.
+  // By chance a p-value is uniform and falls below 0.01 one time in a hundred, so no single one
+  // is held to a bound; their distribution over 12 noise seeds x 3 copies is, at bounds a uniform
+  // sample of 36 crosses less than once in a thousand: median in [0.2, 0.8] (3.6 sd), at most 6
+  // below 0.05 (1.8 expected), none below 1e-5 (an attribution needs about 1e-9). Measured over
+  // 60 seeds (180 p-values): median 0.47, 4.4 % below 0.05, the smallest 4e-4. (Three seeds each
+  // held above 0.01 failed once a copy's numbers moved: 0.009 at seed 11, docs/daemon.md.)
   Mesh unmarked = subdivide(fx->asset.control, 3);
-  for (unsigned seed : {11u, 12u, 13u}) {
+  std::vector<double> calibrated;
+  for (unsigned seed = 11; seed < 23; ++seed) {
     std::string method;
     Mesh suspect = split_at_centroids(with_noise(unmarked, 2e-4, seed));
     Verdict v = detect(suspect, &method);
     print_scores("unmarked re-tessellated, seed " + std::to_string(seed), method, v);
     EXPECT_FALSE(v.attributed);
     for (const auto& s : v.scores) {
-      EXPECT_GT(s.calibrated_p, 0.01) << seed;
+      calibrated.push_back(s.calibrated_p);
       EXPECT_GE(s.p_value, s.calibrated_p);
       EXPECT_GE(s.p_value, s.binomial_p);
     }
   }
+  ASSERT_EQ(calibrated.size(), 36u);
+  std::sort(calibrated.begin(), calibrated.end());
+  const double median = 0.5 * (calibrated[17] + calibrated[18]);
+  EXPECT_GT(median, 0.2);
+  EXPECT_LT(median, 0.8);
+  EXPECT_LE(std::count_if(calibrated.begin(), calibrated.end(), [](double p) { return p < 0.05; }), 6);
+  EXPECT_GT(calibrated.front(), 1e-5);
+  std::cout << "unmarked calibrated p over 36: smallest " << calibrated.front() << ", median " << median << "\n";
   // A marked copy re-tessellated: reported, with both p-values, whatever the verdict.
   std::string method;
   Verdict v = detect(split_at_centroids(fx->files[1].decoded), &method);
