@@ -52,6 +52,25 @@ class Checker {
     }
     out = x;
   }
+  // An array of numbers, each in (lo, hi].
+  void numbers(const json& obj, const std::string& prefix, const char* key, std::vector<double>& out, double lo,
+               double hi) {
+    if (!obj.contains(key)) return;
+    const json& v = obj[key];
+    if (!v.is_array()) return error(prefix + key, "must be an array of numbers, got " + std::string(v.type_name()));
+    std::vector<double> list;
+    for (const json& x : v) {
+      if (!x.is_number()) return error(prefix + key, "must hold numbers only, got " + std::string(x.type_name()));
+      const double d = x.get<double>();
+      if (!(d > lo && d <= hi)) {
+        std::ostringstream s;
+        s << "every value must be in (" << lo << ", " << hi << "], got " << d;
+        return error(prefix + key, s.str());
+      }
+      list.push_back(d);
+    }
+    out = std::move(list);
+  }
   void boolean(const json& obj, const std::string& prefix, const char* key, bool& out) {
     if (!obj.contains(key)) return;
     if (!obj[key].is_boolean()) return error(prefix + key, "must be true or false");
@@ -158,12 +177,13 @@ Config parse_config(const std::string& text, const std::string& source, const st
     if (!w.is_object()) {
       c.error("compression", "must be an object");
     } else {
-      c.known(w, "compression.", {"tolerance", "max_vertices", "levels", "angle", "quads", "coarsen",
-                                           "stream_bits"});
+      c.known(w, "compression.", {"tolerance", "max_vertices", "levels", "angle", "fallback_angles", "quads",
+                                           "coarsen", "stream_bits"});
       c.number(w, "compression.", "tolerance", cfg.compression.tolerance, 0, 0.5, true);
       c.integer(w, "compression.", "max_vertices", cfg.compression.max_vertices, 8, 6000);
       c.integer(w, "compression.", "levels", cfg.compression.levels, 1, 5);
       c.number(w, "compression.", "angle", cfg.compression.angle_degrees, 0, 180, true);
+      c.numbers(w, "compression.", "fallback_angles", cfg.fallback_angles, 0, 180);
       c.boolean(w, "compression.", "quads", cfg.compression.rail_quads);
       c.boolean(w, "compression.", "coarsen", cfg.compression.coarsen);
       c.integer(w, "compression.", "stream_bits", cfg.stream_bits, 12, 24);
@@ -220,6 +240,11 @@ std::map<std::string, std::string> flatten(const Config& c) {
     s << x;
     return s.str();
   };
+  auto nums = [&num](const std::vector<double>& xs) {
+    std::string s = "[";
+    for (double x : xs) s += (s.size() > 1 ? ", " : "") + num(x);
+    return s + "]";
+  };
   return {{"home", c.home},
           {"drop_dir", c.drop_dir},
           {"output_dir", c.output_dir},
@@ -242,6 +267,7 @@ std::map<std::string, std::string> flatten(const Config& c) {
           {"compression.max_vertices", std::to_string(c.compression.max_vertices)},
           {"compression.levels", std::to_string(c.compression.levels)},
           {"compression.angle", num(c.compression.angle_degrees)},
+          {"compression.fallback_angles", nums(c.fallback_angles)},
           {"compression.quads", c.compression.rail_quads ? "true" : "false"},
           {"compression.coarsen", c.compression.coarsen ? "true" : "false"},
           {"compression.stream_bits", std::to_string(c.stream_bits)},

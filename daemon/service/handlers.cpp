@@ -129,6 +129,7 @@ struct LoadedAsset {
 jobs::PrepareParams prepare_params(const Config& cfg) {
   jobs::PrepareParams pp;
   pp.compression = cfg.compression;
+  pp.fallback_angles = cfg.fallback_angles;
   pp.max_control_vertices = cfg.max_vertices;
   return pp;
 }
@@ -153,8 +154,9 @@ LoadedAsset get_or_prepare(store::Store& st, const store::Asset& asset, const Me
     throw PermanentError(asset.name + ": compression failed: " + e.what());
   }
   const CompressResult& cr = prepared.compression;
-  spdlog::info("compressed {}: {} -> {} control vertices, Hausdorff {:.3f} %, RMS {:.3f} % of the diagonal{}",
-               asset.name, mesh.num_vertices(), prepared.control.num_vertices(),
+  spdlog::info("compressed {}: {} -> {} control vertices at a crease angle of {} degrees, Hausdorff {:.3f} %, RMS "
+               "{:.3f} % of the diagonal{}",
+               asset.name, mesh.num_vertices(), prepared.control.num_vertices(), cr.angle_degrees,
                100 * cr.stats.hausdorff / cr.stats.diagonal, 100 * cr.stats.rms / cr.stats.diagonal,
                cr.tolerance_met ? "" : " (tolerance not met " + tolerance_miss_reason(cr, pp.compression) + ")");
   store::Polyhedron row;
@@ -170,6 +172,7 @@ LoadedAsset get_or_prepare(store::Store& st, const store::Asset& asset, const Me
                        {"hausdorff_relative", cr.stats.hausdorff / cr.stats.diagonal},
                        {"rms_relative", cr.stats.rms / cr.stats.diagonal},
                        {"tolerance_met", cr.tolerance_met},
+                       {"angle", cr.angle_degrees},
                        {"rounds", cr.rounds}}
                       .dump();
   row = st.put_polyhedron(row);

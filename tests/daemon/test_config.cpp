@@ -41,6 +41,7 @@ TEST_F(ConfigTest, MinimalConfigGetsDefaultsAndResolvesRelativePaths) {
   EXPECT_EQ(c.context_cache_mb, 512);
   EXPECT_TRUE(c.compression.rail_quads);
   EXPECT_FALSE(c.compression.coarsen);
+  EXPECT_EQ(c.fallback_angles, (std::vector<double>{30, 25, 20}));
   EXPECT_EQ(c.master_key_path(), (dir / "home" / "master.key").string());
 }
 
@@ -51,7 +52,7 @@ TEST_F(ConfigTest, FullConfigParses) {
       "watermark": {"method": "multiplicative", "strength": 0.02, "threshold": 0.1, "message_bits": 48,
                     "max_vertices": 3000},
       "compression": {"tolerance": 0.01, "max_vertices": 400, "levels": 2, "angle": 40, "quads": false,
-                      "coarsen": true, "stream_bits": 14},
+                      "coarsen": true, "stream_bits": 14, "fallback_angles": [32.5, 28]},
       "detect": {"p_threshold": 1e-9, "max_candidates": 5, "context_cache_mb": 0}})",
                           "test.json", dir.string(), true);
   EXPECT_EQ(c.workers, 4);
@@ -62,6 +63,7 @@ TEST_F(ConfigTest, FullConfigParses) {
   EXPECT_FALSE(c.compression.rail_quads);
   EXPECT_TRUE(c.compression.coarsen);
   EXPECT_EQ(c.stream_bits, 14);
+  EXPECT_EQ(c.fallback_angles, (std::vector<double>{32.5, 28}));
   EXPECT_EQ(c.watermark.params.method, Method::Multiplicative);
   EXPECT_EQ(c.watermark.message_bits, 48);
   EXPECT_EQ(c.max_vertices, 3000);
@@ -92,6 +94,13 @@ TEST_F(ConfigTest, MissingFoldersAndBadCombinations) {
                         "compression.levels: must be in", "compression.stream_bits: must be in",
                         "compression.tolerance: must be in", "compression.shape: unknown key"})
     EXPECT_NE(e.find(s), std::string::npos) << s << "\n" << e;
+  for (const auto& [list, why] : {std::pair<const char*, const char*>{"30", "must be an array of numbers, got number"},
+                                   {"[30, \"25\"]", "must hold numbers only, got string"},
+                                   {"[30, 0]", "every value must be in (0, 180], got 0"},
+                                   {"[181]", "every value must be in (0, 180], got 181"}}) {
+    e = expect_error("{" + base + R"(, "compression": {"fallback_angles": )" + list + "}}");
+    EXPECT_NE(e.find(std::string("compression.fallback_angles: ") + why), std::string::npos) << list << "\n" << e;
+  }
   e = expect_error("{" + base + R"(, "lease_seconds": 10, "heartbeat_seconds": 6})");
   EXPECT_NE(e.find("heartbeat_seconds: must be at most half"), std::string::npos) << e;
   // Tools that only read settings do not need the folders.
@@ -113,6 +122,11 @@ TEST_F(ConfigTest, ChangesListOldAndNewValues) {
   EXPECT_EQ(ch[1], "workers: 2 -> 3");
   EXPECT_FALSE(needs_restart(ch[0]));
   EXPECT_TRUE(needs_restart(ch[1]));
+  Config d = parse_config("{" + base + R"(, "compression": {"fallback_angles": []}})", "t", dir.string(), true);
+  ch = config_changes(a, d);
+  ASSERT_EQ(ch.size(), 1u);
+  EXPECT_EQ(ch[0], "compression.fallback_angles: [30, 25, 20] -> []");
+  EXPECT_FALSE(needs_restart(ch[0]));
 }
 
 TEST(ConfigExample, ShippedExampleIsValid) {

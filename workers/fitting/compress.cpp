@@ -184,6 +184,7 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
   CompressResult& out = st.out;
   const Mesh mesh = in_unit_box(input, o, source, &out.normalization);
   out.levels = o.levels;
+  out.angle_degrees = o.angle_degrees;
   out.input_vertices = input.num_vertices();
   const Features features = features_of(mesh, o);
   const Segmentation seg = segment(mesh, features);

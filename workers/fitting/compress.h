@@ -64,6 +64,7 @@ struct CompressResult {
   // the smallest stream. Empty when no round met the tolerance.
   std::vector<CompressCandidate> candidates;
   int rounds = 0;
+  double angle_degrees = 35.0;  // the crease angle it was fitted at (options.angle_degrees)
   int input_vertices = 0, sharp_edges = 0, corners = 0, patches = 0;
 };
 

@@ -90,6 +90,43 @@ struct Reader {
   }
 };
 
+// ";fallback=30,25,20" (rows prepared before the fallback have none), or nothing when empty.
+std::string fallback_key(const std::vector<double>& angles) {
+  std::string k;
+  for (double a : angles) k += (k.empty() ? ";fallback=" : ",") + shortest(a);
+  return k;
+}
+
+// compress() at the configured angle, then at each smaller fallback angle with a crease network
+// of its own until one meets the tolerance (PrepareParams::fallback_angles). A fallback angle
+// the part cannot be compressed at (more corners than the budget, say) is passed over.
+CompressResult compress_with_fallback(const Mesh& original, const CompressOptions& options,
+                                      const std::vector<double>& fallback, const std::string& source) {
+  CompressResult best = compress(original, options, source);
+  std::vector<Features> networks;
+  for (const double angle : fallback) {
+    if (best.tolerance_met) break;
+    if (!(angle < options.angle_degrees)) continue;
+    CompressOptions o = options;
+    o.angle_degrees = angle;
+    try {
+      if (networks.empty()) networks.push_back(compress_features(original, options, source));
+      Features f = compress_features(original, o, source);
+      if (std::any_of(networks.begin(), networks.end(), [&f](const Features& g) {
+            return g.sharp_edges == f.sharp_edges && g.corners == f.corners;
+          }))
+        continue;
+      networks.push_back(std::move(f));
+      CompressResult r = compress(original, o, source);
+      if (r.tolerance_met || r.stats.hausdorff / r.stats.diagonal < best.stats.hausdorff / best.stats.diagonal)
+        best = std::move(r);
+    } catch (const InputError&) {
+      continue;
+    }
+  }
+  return best;
+}
+
 }  // namespace
 
 std::string PrepareParams::key() const {
@@ -104,7 +141,7 @@ std::string PrepareParams::key() const {
   return "prepare-v2;compress;verify=dense;tolerance=" + shortest(c.tolerance) + ";max_vertices=" + std::to_string(c.max_vertices) +
          ";levels=" + std::to_string(c.levels) + ";angle=" + shortest(c.angle_degrees) +
          ";max_rounds=" + std::to_string(c.max_rounds) + (c.rail_quads ? ";quads=rail" : "") + (c.coarsen ? ";coarsen=1" : "") +
-         (c.seed != 1 ? ";seed=" + std::to_string(c.seed) : "") +
+         (c.seed != 1 ? ";seed=" + std::to_string(c.seed) : "") + fallback_key(fallback_angles) +
          ";basis=dense-kirchhoff";
 }
 
@@ -215,7 +252,7 @@ PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
     options.verify = [&original, levels = options.levels, tolerance = options.tolerance](const Mesh& control) {
       return decoded_hausdorff_within(original, control, levels, tolerance);
     };
-    a.compression = compress(original, options, source);
+    a.compression = compress_with_fallback(original, options, params.fallback_angles, source);
   } catch (const InputError&) {
     throw;
   } catch (const std::bad_alloc&) {
