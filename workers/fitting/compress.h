@@ -64,6 +64,10 @@ struct CompressResult {
   // the smallest stream. Empty when no round met the tolerance.
   std::vector<CompressCandidate> candidates;
   int rounds = 0;
+  // Per round, in order: its control vertices and the better variant's relative error by the
+  // fit's own measurement (what steered the next round).
+  std::vector<int> round_vertices;
+  std::vector<double> round_errors;
   double angle_degrees = 35.0;  // the crease angle it was fitted at (options.angle_degrees)
   int input_vertices = 0, sharp_edges = 0, corners = 0, patches = 0;
 };
