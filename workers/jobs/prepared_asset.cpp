@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <new>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -99,7 +100,8 @@ std::string fallback_key(const std::vector<double>& angles) {
 
 // compress() at the configured angle, then at each smaller fallback angle with a crease network
 // of its own until one meets the tolerance (PrepareParams::fallback_angles). A fallback angle
-// the part cannot be compressed at (more corners than the budget, say) is passed over.
+// the part cannot be compressed at (more corners than the budget, a singular fit) is passed
+// over: the configured angle's result stands, and the job does not fail for a better try.
 CompressResult compress_with_fallback(const Mesh& original, const CompressOptions& options,
                                       const std::vector<double>& fallback, const std::string& source) {
   CompressResult best = compress(original, options, source);
@@ -120,7 +122,9 @@ CompressResult compress_with_fallback(const Mesh& original, const CompressOption
       CompressResult r = compress(original, o, source);
       if (r.tolerance_met || r.stats.hausdorff / r.stats.diagonal < best.stats.hausdorff / best.stats.diagonal)
         best = std::move(r);
-    } catch (const InputError&) {
+    } catch (const std::bad_alloc&) {
+      throw;  // may pass on a retry
+    } catch (const std::exception&) {
       continue;
     }
   }
