@@ -105,9 +105,7 @@ FitsAtAngles fit_at_angles(const Mesh& mesh, const CompressOptions& options, con
       CompressOptions o = options;
       o.angle_degrees = angle;
       Features f = compress_features(mesh, o, source);
-      if (std::any_of(networks.begin(), networks.end(), [&f](const Features& g) {
-            return g.sharp_edges == f.sharp_edges && g.corners == f.corners;
-          }))
+      if (std::any_of(networks.begin(), networks.end(), [&f](const Features& g) { return same_crease_network(g, f); }))
         continue;
       networks.push_back(std::move(f));
       fresh.push_back(angle);
@@ -222,12 +220,9 @@ void add_compress_commands(CLI::App& app) {
       // the best of the three; docs/compression.md). Parts whose crease network is the same at
       // several of them are fitted once per network.
       std::vector<double> angles{35.0, 45.0, 55.0};
-      // Tried in turn when none of the default angles meets the tolerance: a fold a little
-      // flatter than 35 degrees, smooth to the fit, is rounded off by the subdivision surface
-      // by the same distance however many control vertices are spent near it (fandisk_quads:
-      // 0.53-0.54 % from 176 to 412 vertices at 35 degrees; 96 vertices meet 0.5 % at 30).
-      // Not after an explicit --angle: the user chose which edges are creases.
-      std::vector<double> fallback_angles{30.0, 25.0, 20.0};
+      // Tried in turn when none of the default angles meets the tolerance. Not after an
+      // explicit --angle: the user chose which edges are creases.
+      std::vector<double> fallback_angles = fallback_crease_angles();
       int threads = 0;  // 0: one per core
     };
     auto a = std::make_shared<Args>();

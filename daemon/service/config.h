@@ -39,7 +39,7 @@ struct Config {
   int stream_bits = 16;             // compression.stream_bits: quantisation of the .mmc copies
   // compression.fallback_angles: tried in turn when compression.angle misses the tolerance
   // (jobs::PrepareParams::fallback_angles).
-  std::vector<double> fallback_angles{30.0, 25.0, 20.0};
+  std::vector<double> fallback_angles = fallback_crease_angles();
   double p_threshold = 1e-6;
   int max_candidates = 3;
   // detect.context_cache_mb: resynchronisation contexts kept between detect jobs, shared by the

@@ -138,6 +138,8 @@ Features features_of(const Mesh& unit_box_mesh, const CompressOptions& o) {
 
 }  // namespace
 
+std::vector<double> fallback_crease_angles() { return {30.0, 25.0, 20.0}; }
+
 bool stopped_at_budget(const CompressResult& r, const CompressOptions& o) {
   return r.control.num_vertices() >= o.max_vertices * 9 / 10;
 }

@@ -124,4 +124,8 @@ Features detect_features(const Mesh& mesh, const FeatureOptions& options) {
   return out;
 }
 
+bool same_crease_network(const Features& a, const Features& b) {
+  return a.sharp_edges == b.sharp_edges && a.corners == b.corners;
+}
+
 }  // namespace mm

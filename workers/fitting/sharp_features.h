@@ -37,4 +37,8 @@ struct Features {
 // Works on any polygon mesh, any number of components, any scale (angles only).
 Features detect_features(const Mesh& mesh, const FeatureOptions& options = {});
 
+// Whether two feature sets of one mesh are the same crease network (sharp edges and corners):
+// compress() gives the same result for both, so a caller trying several angles fits it once.
+bool same_crease_network(const Features& a, const Features& b);
+
 }  // namespace mm

@@ -114,9 +114,7 @@ CompressResult compress_with_fallback(const Mesh& original, const CompressOption
     try {
       if (networks.empty()) networks.push_back(compress_features(original, options, source));
       Features f = compress_features(original, o, source);
-      if (std::any_of(networks.begin(), networks.end(), [&f](const Features& g) {
-            return g.sharp_edges == f.sharp_edges && g.corners == f.corners;
-          }))
+      if (std::any_of(networks.begin(), networks.end(), [&f](const Features& g) { return same_crease_network(g, f); }))
         continue;
       networks.push_back(std::move(f));
       CompressResult r = compress(original, o, source);

@@ -21,11 +21,9 @@ struct PrepareParams {
   CompressOptions compression;  // every field changes the result, so all are in key()
   // When the fit at compression.angle_degrees misses the tolerance, the smaller of these angles
   // are tried in turn (one fit per new crease network) until one meets it; the first that does
-  // is kept, else the closest. A fold a little flatter than the crease angle is smooth to the
-  // fit and rounded off by the same distance however many vertices are spent near it
-  // (fandisk_quads: 0.55 % at 35 degrees, within 0.5 % at 30). `meshmark compress` does the
-  // same after its default angles. Empty: the configured angle only. In key().
-  std::vector<double> fallback_angles{30.0, 25.0, 20.0};
+  // is kept, else the closest (fallback_crease_angles(), fitting/compress.h, says why). Empty:
+  // the configured angle only. In key().
+  std::vector<double> fallback_angles = fallback_crease_angles();
   // The basis is dense (n x n doubles): a control budget above this is refused before compressing,
   // and so is a control polyhedron that ends up larger.
   int max_control_vertices = 4000;  // <= kMaxBasisVertices
