@@ -2,8 +2,10 @@
 
 #include "cli/commands.h"
 #include "meshio/mesh.h"
+#include "service/memory.h"
 
 int main(int argc, char** argv) {
+  mm::service::reuse_freed_memory();
   CLI::App app{"meshmark: compress CAD meshes, watermark them per customer, trace leaked copies"};
   app.require_subcommand(1);
   mm::cli::add_offline_commands(app);

@@ -6,9 +6,11 @@
 
 #include "service/config.h"
 #include "service/daemon.h"
+#include "service/memory.h"
 #include "store/home.h"
 
 int main(int argc, char** argv) {
+  mm::service::reuse_freed_memory();
   CLI::App app{"meshmarkd: watches drop folders and runs protect/detect jobs from the meshmark store"};
   std::string config_path;
   bool check_only = false, init_home = false;

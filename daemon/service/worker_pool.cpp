@@ -1,5 +1,7 @@
 #include "service/worker_pool.h"
 
+#include "service/memory.h"
+
 #include <spdlog/spdlog.h>
 
 #include "meshio/mesh.h"
@@ -165,6 +167,7 @@ void WorkerPool::worker_main(int index) {
       error = "unknown exception";
     }
     double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return_freed_memory();
     std::string outcome;
     try {
       if (error.empty()) {
