@@ -281,10 +281,13 @@ void add_compress_commands(CLI::App& app) {
       // fits of several angles run at once.
       double verify_seconds = 0;
       std::mutex verify_mutex;
-      options.verify = [&mesh, &verify_seconds, &verify_mutex, levels = a->o.levels,
+      // The part's samples and tree, built by the first measurement and shared by the fits'
+      // threads and the bit search.
+      const MeasuredSurface measured(mesh);
+      options.verify = [&measured, &verify_seconds, &verify_mutex, levels = a->o.levels,
                         tolerance = a->o.tolerance](const Mesh& control) {
         const double v0 = thread_cpu_seconds();
-        const double h = decoded_hausdorff_within(mesh, control, levels, tolerance);
+        const double h = decoded_hausdorff_within(measured, control, levels, tolerance);
         const std::lock_guard<std::mutex> lock(verify_mutex);
         verify_seconds += thread_cpu_seconds() - v0;
         return h;
@@ -307,7 +310,7 @@ void add_compress_commands(CLI::App& app) {
       std::vector<const FitAtAngle*> from;  // the fit each polyhedron came from
       for (const auto& [fit, control] : fits.polyhedra) polyhedra.push_back(control), from.push_back(fit);
       if (polyhedra.empty()) polyhedra.push_back(&fits.fits.front().result.control), from.push_back(&fits.fits.front());
-      const ChosenStream s = smallest_stream(mesh, polyhedra, search, a->out);
+      const ChosenStream s = smallest_stream(measured, polyhedra, search, a->out);
       const Mesh* chosen = polyhedra[static_cast<std::size_t>(s.polyhedron)];
       const FitAtAngle& chosen_fit = *from[static_cast<std::size_t>(s.polyhedron)];
       const CompressResult& r = chosen_fit.result;

@@ -4,6 +4,8 @@
 #include <array>
 #include <limits>
 #include <map>
+#include <thread>
+#include <vector>
 
 #include "common/shared_meshes.h"
 #include "meshio/read_mesh.h"
@@ -236,4 +238,47 @@ TEST(SurfaceDistance, WithinALimitTheSameNumbersBeyondItNothing) {
   const double h = mm::decoded_distance(s, control, 2).hausdorff_relative();
   EXPECT_EQ(mm::decoded_hausdorff_within(s, control, 2, h), h);
   EXPECT_TRUE(std::isinf(mm::decoded_hausdorff_within(s, control, 2, 0.5 * h)));
+}
+
+// A part measured once against many surfaces (MeasuredSurface): every measurement gives the
+// numbers of a fresh one, in any order, early-stopped ones between them, and from threads at
+// once; a bad part fails at its first measurement, as surface_distance does, and again after.
+TEST(SurfaceDistance, APartMeasuredOnceGivesEachMeasurementsOwnNumbers) {
+  const mm::Mesh s = icosphere(3);
+  mm::Mesh bumped = s, big = s;
+  bumped.points.row(0) *= 1.2;
+  big.points *= 1.1;
+  const mm::Mesh control = icosphere(1);
+  const mm::MeasuredSurface part(s, fast());
+  const mm::SurfaceDistance fresh_bumped = mm::surface_distance(s, bumped, fast());
+  const mm::SurfaceDistance fresh_big = mm::surface_distance(s, big, fast());
+  const mm::SurfaceDistance fresh_decoded = mm::decoded_distance(s, control, 2, fast());
+  const auto same = [](const mm::SurfaceDistance& a, const mm::SurfaceDistance& b) {
+    return a.hausdorff == b.hausdorff && a.rms == b.rms && a.mean == b.mean && a.a_to_b.max == b.a_to_b.max &&
+           a.b_to_a.mean == b.b_to_a.mean && a.diagonal == b.diagonal;
+  };
+  for (int pass = 0; pass < 2; ++pass) {
+    auto d = mm::surface_distance_within(part, big, std::numeric_limits<double>::infinity());
+    ASSERT_TRUE(d.has_value());
+    EXPECT_TRUE(same(*d, fresh_big));
+    EXPECT_FALSE(mm::surface_distance_within(part, big, 0.5 * fresh_big.hausdorff_relative()).has_value());
+    d = mm::surface_distance_within(part, bumped, fresh_bumped.hausdorff_relative());
+    ASSERT_TRUE(d.has_value());
+    EXPECT_TRUE(same(*d, fresh_bumped));
+    EXPECT_TRUE(same(mm::decoded_distance(part, control, 2), fresh_decoded));
+  }
+  // Shared by threads, its first measurement among them.
+  const mm::MeasuredSurface shared(s, fast());
+  std::vector<mm::SurfaceDistance> got(4);
+  std::vector<std::thread> threads;
+  for (std::size_t t = 0; t < got.size(); ++t)
+    threads.emplace_back([&, t] { got[t] = mm::decoded_distance(shared, control, 2); });
+  for (auto& t : threads) t.join();
+  for (const auto& d : got) EXPECT_TRUE(same(d, fresh_decoded));
+  mm::Mesh line = cube();
+  line.points.col(2).setZero();
+  line.points.col(1).setZero();  // no area anywhere
+  const mm::MeasuredSurface bad(line, fast());
+  EXPECT_THROW(mm::decoded_distance(bad, control, 2), mm::InputError);
+  EXPECT_THROW(mm::decoded_distance(bad, control, 2), mm::InputError);
 }

@@ -251,8 +251,10 @@ PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
     // them; the dense measurement the CLI reports decides here too, so a protected part meets
     // the configured tolerance by the same numbers `meshmark compress` and `compare` give.
     CompressOptions options = params.compression;
-    options.verify = [&original, levels = options.levels, tolerance = options.tolerance](const Mesh& control) {
-      return decoded_hausdorff_within(original, control, levels, tolerance);
+    // The original's samples and tree are built once, for every round and fallback angle.
+    const MeasuredSurface measured(original);
+    options.verify = [&measured, levels = options.levels, tolerance = options.tolerance](const Mesh& control) {
+      return decoded_hausdorff_within(measured, control, levels, tolerance);
     };
     a.compression = compress_with_fallback(original, options, params.fallback_angles, source);
   } catch (const InputError&) {

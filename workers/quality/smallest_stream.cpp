@@ -136,6 +136,12 @@ int conservative_bits(const Mesh& control, double tolerance) {
 
 ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& polyhedra, const StreamSearch& search,
                              const std::string& name) {
+  return smallest_stream(MeasuredSurface(part), polyhedra, search, name);
+}
+
+ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::vector<const Mesh*>& polyhedra,
+                             const StreamSearch& search, const std::string& name) {
+  const Mesh& part = measured_part.mesh();
   if (polyhedra.empty()) throw std::invalid_argument("smallest_stream: no polyhedron");
   const std::function<bool(const SurfaceDistance&)> meets = [&search](const SurfaceDistance& m) {
     return m.hausdorff_relative() <= search.tolerance &&
@@ -143,8 +149,8 @@ ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& p
   };
   // The decoded surface's distance, or nothing when it is known to exceed `limit` times the
   // tolerance (decoded_distance_within: a surface far off costs a few samples, not all).
-  const auto measure = [&part, &search](const Mesh& decoded, double limit) {
-    return decoded_distance_within(part, decoded, search.levels, limit * search.tolerance);
+  const auto measure = [&measured_part, &search](const Mesh& decoded, double limit) {
+    return decoded_distance_within(measured_part, decoded, search.levels, limit * search.tolerance);
   };
   // The distance of a surface that meets the tolerances, or nothing.
   const std::function<std::optional<SurfaceDistance>(const Mesh&)> met =

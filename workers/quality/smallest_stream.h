@@ -55,5 +55,9 @@ int conservative_bits(const Mesh& control, double tolerance);
 // its conservative bits is returned (meets = false). `name` names the streams in errors.
 ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& polyhedra, const StreamSearch& search,
                              const std::string& name);
+// The same against a part a caller has measured before (its fit's verify), with its samples and
+// tree; measured with its SamplingParams (the Mesh overload: the defaults, `meshmark compare`'s).
+ChosenStream smallest_stream(const MeasuredSurface& part, const std::vector<const Mesh*>& polyhedra,
+                             const StreamSearch& search, const std::string& name);
 
 }  // namespace mm

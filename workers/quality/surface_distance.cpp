@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <random>
 #include <string>
 
@@ -90,22 +91,36 @@ std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::
 
 namespace {
 
+// The closest-point tree of a surface's triangles.
+std::unique_ptr<TriangleDistanceTree> tree_of(const Mesh& mesh) {
+  const std::vector<Tri> target = triangles(mesh);
+  std::vector<std::array<Eigen::Vector3d, 3>> corners;
+  corners.reserve(target.size());
+  for (const Tri& t : target) corners.push_back({t.a, t.b, t.c});
+  return std::make_unique<TriangleDistanceTree>(corners);
+}
+
+std::vector<Eigen::Vector3d> samples_of(const Mesh& mesh, const SamplingParams& params) {
+  std::vector<Eigen::Vector3d> points = sample_surface(mesh, params.samples, params.seed, params.include_vertices);
+  if (points.empty()) throw InputError("quality", "no samples: give samples > 0 or include vertices");
+  return points;
+}
+
+// A different seed for the other direction keeps the two sample sets independent.
+SamplingParams other_direction(const SamplingParams& params) {
+  SamplingParams back = params;
+  back.seed = params.seed ^ 0x9E3779B97F4A7C15ull;
+  return back;
+}
+
 // One direction of a measurement: the samples of one surface and the tree of the other. Each
 // sample's distance does not depend on the order the samples are measured in (the tree's hint
 // only speeds a query up), and the statistics are summed in sample order, so a measurement in
 // passes gives the numbers of one in sample order.
 class Direction {
  public:
-  Direction(const Mesh& from, const Mesh& to, const SamplingParams& params) {
-    const std::vector<Tri> target = triangles(to);
-    std::vector<std::array<Eigen::Vector3d, 3>> corners;
-    corners.reserve(target.size());
-    for (const Tri& t : target) corners.push_back({t.a, t.b, t.c});
-    tree_ = std::make_unique<TriangleDistanceTree>(corners);
-    points_ = sample_surface(from, params.samples, params.seed, params.include_vertices);
-    if (points_.empty()) throw InputError("quality", "no samples: give samples > 0 or include vertices");
-    squared_.assign(points_.size(), 0.0);
-  }
+  Direction(const std::vector<Eigen::Vector3d>& points, const TriangleDistanceTree& tree)
+      : tree_(tree), points_(points), squared_(points.size(), 0.0) {}
   // Measures samples 0, stride, 2 stride, ... but those a pass with stride `coarser` measured
   // (0: none). False as soon as one lies farther than limit * diagonal (exactly as
   // hausdorff_relative() compares: distance / diagonal).
@@ -114,7 +129,7 @@ class Direction {
       if (coarser > 0 && i % coarser == 0) continue;
       // Consecutive samples lie on the same or neighbouring triangles: each query starts from
       // the previous answer.
-      squared_[i] = tree_->squared_distance(points_[i], hint_);
+      squared_[i] = tree_.squared_distance(points_[i], hint_);
       if (std::sqrt(squared_[i]) / diagonal > limit) return false;
     }
     return true;
@@ -135,8 +150,8 @@ class Direction {
   }
 
  private:
-  std::unique_ptr<TriangleDistanceTree> tree_;
-  std::vector<Eigen::Vector3d> points_;
+  const TriangleDistanceTree& tree_;
+  const std::vector<Eigen::Vector3d>& points_;
   std::vector<double> squared_;
   int hint_ = -1;
 };
@@ -146,8 +161,41 @@ constexpr std::size_t kPasses[] = {64, 16, 4, 1};
 
 }  // namespace
 
+struct MeasuredSurface::Impl {
+  Mesh mesh;
+  SamplingParams params;
+  double diagonal = 0;
+  // Built by the first measurement (std::call_once: a failed build throws and leaves it for
+  // the next to try).
+  mutable std::once_flag built;
+  mutable std::unique_ptr<TriangleDistanceTree> tree;
+  mutable std::vector<Eigen::Vector3d> samples;
+  void build() const {
+    std::call_once(built, [this] {
+      auto t = tree_of(mesh);
+      samples = samples_of(mesh, params);
+      tree = std::move(t);
+    });
+  }
+};
+
+MeasuredSurface::MeasuredSurface(const Mesh& mesh, const SamplingParams& params) {
+  auto im = std::make_shared<Impl>();
+  im->mesh = mesh;
+  im->params = params;
+  im->diagonal = diagonal_of(mesh);
+  impl_ = std::move(im);
+}
+
+MeasuredSurface::~MeasuredSurface() = default;
+
+const Mesh& MeasuredSurface::mesh() const { return impl_->mesh; }
+const SamplingParams& MeasuredSurface::params() const { return impl_->params; }
+
 OneSidedDistance one_sided_distance(const Mesh& from, const Mesh& to, const SamplingParams& params) {
-  Direction d(from, to, params);
+  const auto tree = tree_of(to);
+  const std::vector<Eigen::Vector3d> points = samples_of(from, params);
+  Direction d(points, *tree);
   d.measure(1, 0, std::numeric_limits<double>::infinity(), 1.0);
   return d.stats();
 }
@@ -156,12 +204,26 @@ SurfaceDistance decoded_distance(const Mesh& part, const Mesh& control, int leve
   return surface_distance(part, decompress_to_level(control, levels), params);
 }
 
+SurfaceDistance decoded_distance(const MeasuredSurface& part, const Mesh& control, int levels) {
+  return *surface_distance_within(part, decompress_to_level(control, levels), std::numeric_limits<double>::infinity());
+}
+
 std::optional<SurfaceDistance> decoded_distance_within(const Mesh& part, const Mesh& control, int levels, double limit,
                                                        const SamplingParams& params) {
   return surface_distance_within(part, decompress_to_level(control, levels), limit, params);
 }
 
+std::optional<SurfaceDistance> decoded_distance_within(const MeasuredSurface& part, const Mesh& control, int levels,
+                                                       double limit) {
+  return surface_distance_within(part, decompress_to_level(control, levels), limit);
+}
+
 double decoded_hausdorff_within(const Mesh& part, const Mesh& control, int levels, double limit) {
+  const auto d = decoded_distance_within(part, control, levels, limit);
+  return d ? d->hausdorff_relative() : std::numeric_limits<double>::infinity();
+}
+
+double decoded_hausdorff_within(const MeasuredSurface& part, const Mesh& control, int levels, double limit) {
   const auto d = decoded_distance_within(part, control, levels, limit);
   return d ? d->hausdorff_relative() : std::numeric_limits<double>::infinity();
 }
@@ -172,13 +234,19 @@ SurfaceDistance surface_distance(const Mesh& a, const Mesh& b, const SamplingPar
 
 std::optional<SurfaceDistance> surface_distance_within(const Mesh& a, const Mesh& b, double limit,
                                                        const SamplingParams& params) {
+  return surface_distance_within(MeasuredSurface(a, params), b, limit);
+}
+
+std::optional<SurfaceDistance> surface_distance_within(const MeasuredSurface& measured, const Mesh& b, double limit) {
+  const MeasuredSurface::Impl& a = *measured.impl_;
   SurfaceDistance s;
-  s.diagonal = diagonal_of(a);
-  Direction ab(a, b, params);
-  // A different seed for the other direction keeps the two sample sets independent.
-  SamplingParams back = params;
-  back.seed = params.seed ^ 0x9E3779B97F4A7C15ull;
-  Direction ba(b, a, back);
+  s.diagonal = a.diagonal;
+  // b's triangles are checked first, as they were when a's tree was built per measurement.
+  const auto b_tree = tree_of(b);
+  a.build();
+  const std::vector<Eigen::Vector3d> b_samples = samples_of(b, other_direction(a.params));
+  Direction ab(a.samples, *b_tree);
+  Direction ba(b_samples, *a.tree);
   if (std::isinf(limit)) {
     ab.measure(1, 0, limit, s.diagonal);
     ba.measure(1, 0, limit, s.diagonal);

@@ -5,6 +5,7 @@
 #pragma once
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -42,6 +43,26 @@ struct SurfaceDistance {
 std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::uint64_t seed,
                                             bool include_vertices);
 
+// One surface's side of repeated measurements against it (the part, in a compress run that
+// measures a dozen candidate surfaces against it): its samples and its closest-point tree, built
+// once (on fandisk about a sixth of a measurement), so a measurement builds only the other
+// surface's. The overloads taking one give the numbers of those taking its mesh and params, bit
+// for bit, and throw what they throw: the samples and tree are built by the first measurement
+// (so a caller may make one before it has validated the mesh), once, whichever thread measures
+// first; threads may share one, and copies share it.
+class MeasuredSurface {
+ public:
+  explicit MeasuredSurface(const Mesh& mesh, const SamplingParams& params = {});
+  ~MeasuredSurface();
+  const Mesh& mesh() const;
+  const SamplingParams& params() const;
+  struct Impl;
+
+ private:
+  friend std::optional<SurfaceDistance> surface_distance_within(const MeasuredSurface&, const Mesh&, double);
+  std::shared_ptr<const Impl> impl_;
+};
+
 OneSidedDistance one_sided_distance(const Mesh& from, const Mesh& to, const SamplingParams& params = {});
 SurfaceDistance surface_distance(const Mesh& a, const Mesh& b, const SamplingParams& params = {});
 
@@ -54,17 +75,22 @@ SurfaceDistance surface_distance(const Mesh& a, const Mesh& b, const SamplingPar
 // statistics are summed in sample order). An infinite limit measures everything.
 std::optional<SurfaceDistance> surface_distance_within(const Mesh& a, const Mesh& b, double limit,
                                                        const SamplingParams& params = {});
+std::optional<SurfaceDistance> surface_distance_within(const MeasuredSurface& a, const Mesh& b, double limit);
 
 // What a receiver of a control polyhedron sees against the part it stands for: `control`
 // subdivided `levels` times (subdivision/decompress.h), measured from `part` as above. The one
 // measurement behind compress's tolerance, its bit choice and protect jobs.
 SurfaceDistance decoded_distance(const Mesh& part, const Mesh& control, int levels,
                                  const SamplingParams& params = {});
+SurfaceDistance decoded_distance(const MeasuredSurface& part, const Mesh& control, int levels);
 // The same, or nothing once it is known to exceed `limit` (surface_distance_within).
 std::optional<SurfaceDistance> decoded_distance_within(const Mesh& part, const Mesh& control, int levels,
                                                        double limit, const SamplingParams& params = {});
+std::optional<SurfaceDistance> decoded_distance_within(const MeasuredSurface& part, const Mesh& control, int levels,
+                                                       double limit);
 // Its relative Hausdorff distance, or +infinity once it is known to exceed `limit`: what a
 // CompressOptions::verify for the tolerance `limit` returns (compress only compares it).
 double decoded_hausdorff_within(const Mesh& part, const Mesh& control, int levels, double limit);
+double decoded_hausdorff_within(const MeasuredSurface& part, const Mesh& control, int levels, double limit);
 
 }  // namespace mm
