@@ -1,6 +1,7 @@
 // TriangleDistanceTree must give CGAL's AABB tree numbers bit for bit (the quality reports and
 // compress's tolerance decisions were made with CGAL's): queries near, on and far from the
-// surfaces of a curved CAD part and of a subdivided control mesh, with and without hints.
+// surfaces of a curved CAD part and of a subdivided control mesh, with and without hints; and
+// the triangle a query names (triangle_of) is one at the distance it reports.
 #include <gtest/gtest.h>
 
 #include <CGAL/AABB_traits.h>
@@ -57,7 +58,7 @@ void expect_cgal_numbers(const mm::Mesh& mesh, const mm::Mesh& query_surface, in
     points[k] += scale * Eigen::Vector3d(u(rng), u(rng), u(rng));
   }
   for (int k = 0; k < 20; ++k) points.push_back(Eigen::Vector3d(u(rng), u(rng), u(rng)) * 3 * diag);
-  int hint = -1, mismatches = 0;
+  int hint = -1, mismatches = 0, misnamed = 0;
   for (size_t k = 0; k < points.size(); ++k) {
     const auto& p = points[k];
     const double expected = reference.squared_distance(K::Point_3(p.x(), p.y(), p.z()));
@@ -67,8 +68,19 @@ void expect_cgal_numbers(const mm::Mesh& mesh, const mm::Mesh& query_surface, in
     if (k % 5 < 3) hint = h;
     if (!same_bits(got, expected) && ++mismatches <= 5)
       ADD_FAILURE() << "query " << k << " (" << p.transpose() << "): " << got << " vs CGAL " << expected;
+    // The triangle it names is one at that distance (as CGAL measures a triangle: its first
+    // vertex or the projection, whichever is closer).
+    const K::Point_3 q(p.x(), p.y(), p.z());
+    const K::Triangle_3& named = cgal[static_cast<size_t>(tree.triangle_of(h))];
+    const double own = std::min(K::Compute_squared_distance_3()(q, named.vertex(0)),
+                                K::Compute_squared_distance_3()(q, K::Construct_projected_point_3()(named, q)));
+    if (!same_bits(own, got) && ++misnamed <= 5)
+      ADD_FAILURE() << "query " << k << ": the triangle named is at " << own << ", not " << got;
   }
   EXPECT_EQ(mismatches, 0) << "of " << points.size() << " queries";
+  EXPECT_EQ(misnamed, 0) << "of " << points.size() << " queries";
+  EXPECT_THROW(tree.triangle_of(-1), std::out_of_range);
+  EXPECT_THROW(tree.triangle_of(static_cast<int>(tris.size())), std::out_of_range);
 }
 
 TEST(TriangleDistanceTree, CgalNumbersOnAPart) {

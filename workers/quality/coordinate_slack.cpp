@@ -1,8 +1,5 @@
 #include "quality/coordinate_slack.h"
 
-#include <CGAL/AABB_traits.h>
-#include <CGAL/AABB_tree.h>
-#include <CGAL/AABB_triangle_primitive.h>
 #include <CGAL/Simple_cartesian.h>
 
 #include <algorithm>
@@ -18,9 +15,6 @@ namespace {
 using K = CGAL::Simple_cartesian<double>;
 using Triangle = K::Triangle_3;
 using Point = K::Point_3;
-using TriangleIt = std::vector<Triangle>::const_iterator;
-using Primitive = CGAL::AABB_triangle_primitive<K, TriangleIt>;
-using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Primitive>>;
 
 Point point(const Points& p, int v) { return Point(p(v, 0), p(v, 1), p(v, 2)); }
 
@@ -41,24 +35,18 @@ constexpr double kUnlimited = 1e30, kTangent = 1e-3;
 
 std::vector<double> coordinate_slack(const Mesh& part, const Mesh& control, int levels, double tolerance,
                                      const SamplingParams& params) {
+  return coordinate_slack(MeasuredSurface(part, params), control, levels, tolerance, params);
+}
+
+std::vector<double> coordinate_slack(const MeasuredSurface& part, const Mesh& control, int levels, double tolerance,
+                                     const SamplingParams& params) {
   const SubdivisionOperator op = build_subdivision(control, levels);
   Mesh refined = op.refined;
   refined.points = apply_subdivision(op, control.points);
   const int nr = refined.num_vertices();
 
-  std::vector<Triangle> part_tris;
-  fan(part, part_tris, nullptr);
-  if (part_tris.empty()) throw InputError("quality", "part has no face of positive area");
-  // The quality code's own tree (CGAL's numbers bit for bit); refined vertices come in mesh
-  // order, so each query starts from the previous answer.
-  std::vector<std::array<Eigen::Vector3d, 3>> part_corners;
-  part_corners.reserve(part_tris.size());
-  for (const Triangle& t : part_tris) {
-    std::array<Eigen::Vector3d, 3> c;
-    for (int j = 0; j < 3; ++j) c[static_cast<std::size_t>(j)] = {t[j].x(), t[j].y(), t[j].z()};
-    part_corners.push_back(c);
-  }
-  const TriangleDistanceTree part_tree(part_corners);
+  // Refined vertices come in mesh order, so each query starts from the previous answer.
+  const TriangleDistanceTree& part_tree = part.tree();
   std::vector<double> e(static_cast<std::size_t>(nr));
   int hint = -1;
   for (int r = 0; r < nr; ++r) e[r] = std::sqrt(part_tree.squared_distance(refined.points.row(r).transpose(), hint));
@@ -74,13 +62,26 @@ std::vector<double> coordinate_slack(const Mesh& part, const Mesh& control, int 
     for (int r : corners[t])
       for (int a = 0; a < 3; ++a) m[r][a] = std::max(m[r][a], std::abs(n[a]) / len);
   }
-  Tree tree(tris.begin(), tris.end());
-  tree.accelerate_distance_queries();
-  for (const auto& p : sample_surface(part, params.samples, params.seed, params.include_vertices)) {
-    const Point q(p.x(), p.y(), p.z());
-    const auto [closest, it] = tree.closest_point_and_primitive(q);
-    const double d = std::sqrt(CGAL::squared_distance(q, closest));
-    for (int r : corners[static_cast<std::size_t>(it - tris.begin())]) e[r] = std::max(e[r], d);
+  // The quality code's tree again (CGAL's distances; of equally close triangles it may name
+  // another than CGAL's AABB tree did, which only moves an error between neighbours' corners).
+  std::vector<std::array<Eigen::Vector3d, 3>> refined_corners;
+  refined_corners.reserve(tris.size());
+  for (const Triangle& t : tris) {
+    std::array<Eigen::Vector3d, 3> c;
+    for (int j = 0; j < 3; ++j) c[static_cast<std::size_t>(j)] = {t[j].x(), t[j].y(), t[j].z()};
+    refined_corners.push_back(c);
+  }
+  const TriangleDistanceTree tree(refined_corners);
+  int at = -1;  // samples come in the part's face order: each query starts from the previous answer
+  const auto& own = part.params();
+  const bool same = own.samples == params.samples && own.seed == params.seed &&
+                    own.include_vertices == params.include_vertices;
+  const std::vector<Eigen::Vector3d> other =
+      same ? std::vector<Eigen::Vector3d>{}
+           : sample_surface(part.mesh(), params.samples, params.seed, params.include_vertices);
+  for (const auto& p : same ? part.samples() : other) {
+    const double d = std::sqrt(tree.squared_distance(p, at));
+    for (int r : corners[static_cast<std::size_t>(tree.triangle_of(at))]) e[r] = std::max(e[r], d);
   }
 
   std::vector<double> out(3 * static_cast<std::size_t>(control.num_vertices()), kUnlimited);

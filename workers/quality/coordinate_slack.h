@@ -27,5 +27,9 @@ namespace mm {
 // build_subdivision and sample_surface do.
 std::vector<double> coordinate_slack(const Mesh& part, const Mesh& control, int levels, double tolerance,
                                      const SamplingParams& params = {});
+// The same against a part measured once (quality/surface_distance.h): its tree, and its samples
+// where `params` are its own.
+std::vector<double> coordinate_slack(const MeasuredSurface& part, const Mesh& control, int levels, double tolerance,
+                                     const SamplingParams& params = {});
 
 }  // namespace mm

@@ -29,7 +29,7 @@ struct MeasuredStream {
 // nearest values, the rest stay, so the encoder's other choices are kept (re-snapping with
 // those coordinates frozen instead lets the greedy coder move others and missed again: abc8
 // 0.598 -> 0.531 -> 0.535 -> 0.590 %). The repair's slack uses the dense measurement's own part
-// samples (the default SamplingParams), so a violation the measurement saw is seen; with a
+// samples (MeasuredSurface::samples), so a violation the measurement saw is seen; with a
 // quarter of them bracket-3's violation was missed. The decoded candidate is measured like the
 // plain one (decoded_distance); returns the smallest that meets the tolerances and is smaller
 // than `smaller_than`, or no bytes.
@@ -53,7 +53,7 @@ static_assert(kCloseToTolerance <= kDescentReach);
 // Start vertices tried for the chosen polyhedron's numbering (evenly spaced in its numbering).
 constexpr int kStarts = 64;
 
-MeasuredStream snap_search(const Mesh& part, const Mesh& control, int levels, CodecParams params, double tolerance,
+MeasuredStream snap_search(const MeasuredSurface& part, const Mesh& control, int levels, CodecParams params, double tolerance,
                           std::size_t smaller_than, const std::function<std::optional<SurfaceDistance>(const Mesh&)>& met,
                           const std::string& name) {
   // The slack is a guide (the measurement decides), so a quarter of the dense samples will do.
@@ -80,7 +80,7 @@ MeasuredStream snap_search(const Mesh& part, const Mesh& control, int levels, Co
       if (repair == kSnapRepairs) break;
       // The codec keeps the vertex order, so the plain and snapped grids line up row by row.
       // The second repair also takes back moves with under a quarter cell of slack left.
-      const std::vector<double> left = coordinate_slack(part, snapped.mesh, levels, tolerance);
+      const std::vector<double> left = coordinate_slack(part, snapped.mesh, levels, tolerance, part.params());
       int reverted = 0;
       for (std::size_t i = 0; i < left.size(); ++i) {
         const int v = static_cast<int>(i / 3), axis = static_cast<int>(i % 3);
@@ -141,7 +141,6 @@ ChosenStream smallest_stream(const Mesh& part, const std::vector<const Mesh*>& p
 
 ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::vector<const Mesh*>& polyhedra,
                              const StreamSearch& search, const std::string& name) {
-  const Mesh& part = measured_part.mesh();
   if (polyhedra.empty()) throw std::invalid_argument("smallest_stream: no polyhedron");
   const std::function<bool(const SurfaceDistance&)> meets = [&search](const SurfaceDistance& m) {
     return m.hausdorff_relative() <= search.tolerance &&
@@ -248,7 +247,7 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
     for (int bits = out.bits; bits <= top; ++bits) {
       CodecParams at = params;
       at.quant_bits = bits;
-      MeasuredStream s = snap_search(part, control, search.levels, at, tolerance, out.bytes.size(), met, name);
+      MeasuredStream s = snap_search(measured_part, control, search.levels, at, tolerance, out.bytes.size(), met, name);
       if (s.bytes.empty()) continue;
       out.bytes = std::move(s.bytes);
       out.distance = s.distance;

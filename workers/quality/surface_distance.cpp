@@ -192,6 +192,16 @@ MeasuredSurface::~MeasuredSurface() = default;
 const Mesh& MeasuredSurface::mesh() const { return impl_->mesh; }
 const SamplingParams& MeasuredSurface::params() const { return impl_->params; }
 
+const TriangleDistanceTree& MeasuredSurface::tree() const {
+  impl_->build();
+  return *impl_->tree;
+}
+
+const std::vector<Eigen::Vector3d>& MeasuredSurface::samples() const {
+  impl_->build();
+  return impl_->samples;
+}
+
 OneSidedDistance one_sided_distance(const Mesh& from, const Mesh& to, const SamplingParams& params) {
   const auto tree = tree_of(to);
   const std::vector<Eigen::Vector3d> points = samples_of(from, params);

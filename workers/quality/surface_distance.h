@@ -50,12 +50,16 @@ std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::
 // for bit, and throw what they throw: the samples and tree are built by the first measurement
 // (so a caller may make one before it has validated the mesh), once, whichever thread measures
 // first; threads may share one, and copies share it.
+class TriangleDistanceTree;
 class MeasuredSurface {
  public:
   explicit MeasuredSurface(const Mesh& mesh, const SamplingParams& params = {});
   ~MeasuredSurface();
   const Mesh& mesh() const;
   const SamplingParams& params() const;
+  // Its closest-point tree and its samples (sample_surface with params()), built on first use.
+  const TriangleDistanceTree& tree() const;
+  const std::vector<Eigen::Vector3d>& samples() const;
   struct Impl;
 
  private:

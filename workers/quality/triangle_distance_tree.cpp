@@ -59,6 +59,7 @@ double box2(const double* lo, const double* hi, const double* p) {
 
 struct TriangleDistanceTree::Impl {
   std::vector<Tri> tris;     // leaf order
+  std::vector<int> index;    // per leaf position, the triangle's index in the constructor's list
   std::vector<Node> nodes;   // pre-order
   std::vector<BvhChildBoxes> child_boxes;  // per node (used for inner nodes)
   double root_lo[3], root_hi[3];
@@ -107,6 +108,7 @@ TriangleDistanceTree::TriangleDistanceTree(const std::vector<std::array<Eigen::V
   // minimum is skipped (the answer is the minimum over all triangles, as CGAL's).
   const double magnitude = std::max(all.max().cwiseAbs().maxCoeff(), all.min().cwiseAbs().maxCoeff());
   impl_->eps = 1e-9 * std::max({(all.max() - all.min()).norm(), magnitude, std::numeric_limits<double>::min()});
+  impl_->index = order;
   impl_->tris.resize(static_cast<size_t>(n));
   for (int k = 0; k < n; ++k) {
     const auto& tr = triangles[static_cast<size_t>(order[static_cast<size_t>(k)])];
@@ -129,6 +131,12 @@ TriangleDistanceTree::TriangleDistanceTree(const std::vector<std::array<Eigen::V
 }
 
 TriangleDistanceTree::~TriangleDistanceTree() = default;
+
+int TriangleDistanceTree::triangle_of(int hint) const {
+  if (hint < 0 || hint >= static_cast<int>(impl_->index.size()))
+    throw std::out_of_range("TriangleDistanceTree::triangle_of: no such position");
+  return impl_->index[static_cast<size_t>(hint)];
+}
 
 double TriangleDistanceTree::squared_distance(const Eigen::Vector3d& q, int& hint) const {
   const Impl& im = *impl_;

@@ -26,6 +26,9 @@ class TriangleDistanceTree {
   // was, to start from (-1 or any out-of-range value: nowhere); an opaque position, not the
   // triangle's index. The answer does not depend on it.
   double squared_distance(const Eigen::Vector3d& q, int& hint) const;
+  // The index (in the constructor's list) of the triangle a query's `hint` names afterwards: the
+  // closest one (of equally close ones, the first the search met).
+  int triangle_of(int hint) const;
   struct Impl;
 
  private:
