@@ -11,7 +11,8 @@
 # Usage: scripts/bench-compress.sh [OUT_DIR]     (env: MESHMARK=path/to/meshmark, MESHES=dir,
 #        MAX_VERTICES=1000, TOLERANCE=0.005, BITS (default: chosen by compress), LIST="fandisk.off ...",
 #        SEEDS="1" (the fit's sampling seeds: which vertex count meets the tolerance varies with the
-#        seed, and the median over 9 parts by +-0.2, so compare changes over several, e.g. "1 2 3"))
+#        seed, and the median over 9 parts by +-0.2, so compare changes over several, e.g. "1 2 3"),
+#        SPEED_RUNS=3 (runs of each protect-path command in the speed table; the least CPU counts))
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MESHMARK=${MESHMARK:-build/daemon/meshmark}
@@ -22,6 +23,7 @@ TOLERANCE=${TOLERANCE:-0.005}
 BITS=${BITS:-}
 LIST=${LIST:-"fandisk.off bracket-3.stl blade.stl rocker.stl abc5.stl abc6.stl abc7.stl abc8.stl abc9.stl"}
 SEEDS=${SEEDS:-1}
+SPEED_RUNS=${SPEED_RUNS:-3}
 for tool in "$MESHMARK" draco_encoder draco_decoder jq python3; do
   command -v "$tool" >/dev/null || [ -x "$tool" ] || { echo "bench-compress: $tool not found" >&2; exit 2; }
 done
@@ -160,7 +162,8 @@ if [ ${#medians[@]} -gt 1 ]; then
 fi
 
 # Speed and memory, per mesh: compress as protect jobs fit (one crease angle, 35 degrees, no
-# coarsening, seed 1, one thread): fit_s is compress() without its dense round checks (check_s),
+# coarsening, seed 1, one thread; the least CPU of SPEED_RUNS runs, and that run's numbers):
+# fit_s is compress() without its dense round checks (check_s),
 # command_s the whole command's CPU time (reading, fit, checks, the bit search, writing), both
 # CPU seconds against the target of 1 s for a 20k-triangle part; that command's peak RSS; and
 # the decoding plus subdivision to level 3 of the first seed's stream above (best of 5 runs,
@@ -174,9 +177,19 @@ for name in $LIST; do
   in="$MESHES/$name"
   base="${name%.*}"
   mmc=$(stream_path "$base" "$first_seed")
-  fast=$(cpu_seconds "$OUT/$base.protect-path.cpu" "$MESHMARK" compress "$in" "$OUT/$base.protect-path.mmc" \
-         --tolerance "$TOLERANCE" --max-vertices "$MAX_VERTICES" --angle 35 --no-coarsen --threads 1 --seed 1 --json)
-  command=$(cat "$OUT/$base.protect-path.cpu")
+  # The same command SPEED_RUNS times (the same stream each time): a shared or virtual machine's
+  # timings spread by 20-30 % between runs, and the least is the one least disturbed.
+  command=""
+  for ((run = 1; run <= SPEED_RUNS; run++)); do
+    json=$(cpu_seconds "$OUT/$base.protect-path.cpu" "$MESHMARK" compress "$in" "$OUT/$base.protect-path.mmc" \
+           --tolerance "$TOLERANCE" --max-vertices "$MAX_VERTICES" --angle 35 --no-coarsen --threads 1 --seed 1 --json)
+    this=$(cat "$OUT/$base.protect-path.cpu")
+    if [ -z "$command" ] || python3 -c "import sys; sys.exit(0 if $this < $command else 1)"; then
+      command=$this
+      fast=$json
+    fi
+  done
+  echo "$command" > "$OUT/$base.protect-path.cpu"
   read -r faces ctrl secs check rss < <(jq -r '"\(.input_faces) \(.control_vertices) \(.seconds - .verify_seconds) \(.verify_seconds) \(.peak_rss_mb)"' <<<"$fast")
   dec=$(for k in 1 2 3 4 5; do
           "$MESHMARK" decompress "$mmc" "$OUT/$base.level3.ply" --level 3 --json | jq -r '.decode_seconds + .subdivide_seconds'
