@@ -19,13 +19,13 @@ using Point = K::Point_3;
 Point point(const Points& p, int v) { return Point(p(v, 0), p(v, 1), p(v, 2)); }
 
 // Fan triangles of positive area with their corner indices.
-void fan(const Mesh& m, std::vector<Triangle>& tris, std::vector<std::array<int, 3>>* corners) {
+void fan(const Mesh& m, std::vector<Triangle>& tris, std::vector<std::array<int, 3>>& corners) {
   for (const auto& f : m.faces)
     for (std::size_t k = 1; k + 1 < f.size(); ++k) {
       Triangle t(point(m.points, f[0]), point(m.points, f[k]), point(m.points, f[k + 1]));
       if (t.is_degenerate()) continue;
       tris.push_back(t);
-      if (corners) corners->push_back({f[0], f[k], f[k + 1]});
+      corners.push_back({f[0], f[k], f[k + 1]});
     }
 }
 
@@ -53,7 +53,7 @@ std::vector<double> coordinate_slack(const MeasuredSurface& part, const Mesh& co
 
   std::vector<Triangle> tris;
   std::vector<std::array<int, 3>> corners;
-  fan(refined, tris, &corners);
+  fan(refined, tris, corners);
   if (tris.empty()) throw InputError("quality", "subdivided control mesh has no face of positive area");
   std::vector<std::array<double, 3>> m(static_cast<std::size_t>(nr), {0, 0, 0});
   for (std::size_t t = 0; t < tris.size(); ++t) {
@@ -65,12 +65,10 @@ std::vector<double> coordinate_slack(const MeasuredSurface& part, const Mesh& co
   // The quality code's tree again (CGAL's distances; of equally close triangles it may name
   // another than CGAL's AABB tree did, which only moves an error between neighbours' corners).
   std::vector<std::array<Eigen::Vector3d, 3>> refined_corners;
-  refined_corners.reserve(tris.size());
-  for (const Triangle& t : tris) {
-    std::array<Eigen::Vector3d, 3> c;
-    for (int j = 0; j < 3; ++j) c[static_cast<std::size_t>(j)] = {t[j].x(), t[j].y(), t[j].z()};
-    refined_corners.push_back(c);
-  }
+  refined_corners.reserve(corners.size());
+  for (const auto& c : corners)
+    refined_corners.push_back({refined.points.row(c[0]).transpose(), refined.points.row(c[1]).transpose(),
+                               refined.points.row(c[2]).transpose()});
   const TriangleDistanceTree tree(refined_corners);
   int at = -1;  // samples come in the part's face order: each query starts from the previous answer
   const auto& own = part.params();

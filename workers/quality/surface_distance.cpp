@@ -191,6 +191,7 @@ MeasuredSurface::~MeasuredSurface() = default;
 
 const Mesh& MeasuredSurface::mesh() const { return impl_->mesh; }
 const SamplingParams& MeasuredSurface::params() const { return impl_->params; }
+double MeasuredSurface::diagonal() const { return impl_->diagonal; }
 
 const TriangleDistanceTree& MeasuredSurface::tree() const {
   impl_->build();
@@ -229,8 +230,7 @@ std::optional<SurfaceDistance> decoded_distance_within(const MeasuredSurface& pa
 }
 
 double decoded_hausdorff_within(const Mesh& part, const Mesh& control, int levels, double limit) {
-  const auto d = decoded_distance_within(part, control, levels, limit);
-  return d ? d->hausdorff_relative() : std::numeric_limits<double>::infinity();
+  return decoded_hausdorff_within(MeasuredSurface(part), control, levels, limit);
 }
 
 double decoded_hausdorff_within(const MeasuredSurface& part, const Mesh& control, int levels, double limit) {
@@ -248,15 +248,13 @@ std::optional<SurfaceDistance> surface_distance_within(const Mesh& a, const Mesh
 }
 
 std::optional<SurfaceDistance> surface_distance_within(const MeasuredSurface& measured, const Mesh& b, double limit) {
-  const MeasuredSurface::Impl& a = *measured.impl_;
   SurfaceDistance s;
-  s.diagonal = a.diagonal;
+  s.diagonal = measured.diagonal();
   // b's triangles are checked first, as they were when a's tree was built per measurement.
   const auto b_tree = tree_of(b);
-  a.build();
-  const std::vector<Eigen::Vector3d> b_samples = samples_of(b, other_direction(a.params));
-  Direction ab(a.samples, *b_tree);
-  Direction ba(b_samples, *a.tree);
+  Direction ab(measured.samples(), *b_tree);
+  const std::vector<Eigen::Vector3d> b_samples = samples_of(b, other_direction(measured.params()));
+  Direction ba(b_samples, measured.tree());
   if (std::isinf(limit)) {
     ab.measure(1, 0, limit, s.diagonal);
     ba.measure(1, 0, limit, s.diagonal);

@@ -57,13 +57,13 @@ class MeasuredSurface {
   ~MeasuredSurface();
   const Mesh& mesh() const;
   const SamplingParams& params() const;
+  double diagonal() const;  // of the mesh's bounding box
   // Its closest-point tree and its samples (sample_surface with params()), built on first use.
   const TriangleDistanceTree& tree() const;
   const std::vector<Eigen::Vector3d>& samples() const;
   struct Impl;
 
  private:
-  friend std::optional<SurfaceDistance> surface_distance_within(const MeasuredSurface&, const Mesh&, double);
   std::shared_ptr<const Impl> impl_;
 };
 
