@@ -287,10 +287,10 @@ void add_compress_commands(CLI::App& app) {
       options.verify = [&measured, &verify_seconds, &verify_mutex, levels = a->o.levels,
                         tolerance = a->o.tolerance](const Mesh& control) {
         const double v0 = thread_cpu_seconds();
-        const double h = decoded_hausdorff_within(measured, control, levels, tolerance);
+        const bool meets = decoded_within(measured, control, levels, tolerance);
         const std::lock_guard<std::mutex> lock(verify_mutex);
         verify_seconds += thread_cpu_seconds() - v0;
-        return h;
+        return meets;
       };
       const std::vector<double> fallback = angle_option->count() > 0 ? std::vector<double>{} : a->fallback_angles;
       const int threads = a->threads > 0 ? a->threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));

@@ -460,7 +460,9 @@ TEST(CliCompress, WritesTheSmallestStreamOfTheCandidates) {
   const mm::Mesh part = mm::read_mesh(in);
   mm::CompressOptions o;
   o.coarsen = true;  // as `meshmark compress` does unless --no-coarsen
-  o.verify = [&](const mm::Mesh& c) { return mm::decoded_distance(part, c, o.levels).hausdorff_relative(); };
+  o.verify = [&](const mm::Mesh& c) {
+    return mm::decoded_distance(part, c, o.levels).hausdorff_relative() <= o.tolerance;
+  };
   const auto fit = mm::compress(part, o);
   ASSERT_EQ(j["candidates"].get<size_t>(), fit.candidates.size());
   std::vector<size_t> smallest;

@@ -238,7 +238,7 @@ TEST(Compress, VerifyHasTheLastWord) {
     EXPECT_NEAR((control.points.colwise().maxCoeff() - control.points.colwise().minCoeff()).norm(),
                 (m.points.colwise().maxCoeff() - m.points.colwise().minCoeff()).norm(),
                 0.1 * (m.points.colwise().maxCoeff() - m.points.colwise().minCoeff()).norm());
-    return 0.0;
+    return true;
   };
   const auto accepted = mm::compress(m, o);
   EXPECT_GE(calls, 1);
@@ -248,7 +248,7 @@ TEST(Compress, VerifyHasTheLastWord) {
   calls = 0;
   o.verify = [&](const mm::Mesh&) {
     ++calls;
-    return 1.0;
+    return false;
   };
   const auto rejected = mm::compress(m, o);
   EXPECT_GE(calls, 1);
@@ -266,7 +266,7 @@ TEST(Compress, CandidatesAreTheRoundsThatMetTheTolerance) {
   o.verify = [&](const mm::Mesh& control) {
     const double h = mm::decoded_distance(m, control, o.levels).hausdorff_relative();
     measured.emplace_back(control.num_vertices(), h);
-    return h;
+    return h <= o.tolerance;
   };
   const auto r = mm::compress(m, o);
   ASSERT_TRUE(r.tolerance_met);
@@ -290,7 +290,7 @@ TEST(Compress, CandidatesAreTheRoundsThatMetTheTolerance) {
     EXPECT_LE(mm::decoded_distance(m, c.control, r.levels).hausdorff_relative(), o.tolerance);
     EXPECT_NEAR(c.stats.diagonal, r.stats.diagonal, 1e-9 * r.stats.diagonal);
   }
-  o.verify = [](const mm::Mesh&) { return 1.0; };
+  o.verify = [](const mm::Mesh&) { return false; };
   EXPECT_TRUE(mm::compress(m, o).candidates.empty());
 }
 

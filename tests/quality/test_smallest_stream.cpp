@@ -19,7 +19,9 @@ const Fixture& block() {
     Fixture x;
     x.part = mm::samples::sample_parts().at(0).mesh;
     mm::CompressOptions o;
-    o.verify = [&x](const mm::Mesh& c) { return mm::decoded_distance(x.part, c, 3).hausdorff_relative(); };
+    o.verify = [&x, &o](const mm::Mesh& c) {
+      return mm::decoded_distance(x.part, c, 3).hausdorff_relative() <= o.tolerance;
+    };
     x.fit = mm::compress(x.part, o);
     return x;
   }();

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <array>
 #include <limits>
 #include <map>
@@ -234,10 +235,34 @@ TEST(SurfaceDistance, WithinALimitTheSameNumbersBeyondItNothing) {
   ASSERT_TRUE(d.has_value());
   EXPECT_EQ(d->rms, whole.rms);
   EXPECT_FALSE(mm::decoded_distance_within(s, control, 2, 0.5 * whole.hausdorff_relative(), fast()).has_value());
-  // As a compress verify: the relative Hausdorff distance, or +infinity beyond the limit.
-  const double h = mm::decoded_distance(s, control, 2).hausdorff_relative();
-  EXPECT_EQ(mm::decoded_hausdorff_within(s, control, 2, h), h);
-  EXPECT_TRUE(std::isinf(mm::decoded_hausdorff_within(s, control, 2, 0.5 * h)));
+}
+
+// The answer alone (surface_within, decoded_within) is surface_distance's comparison exactly:
+// at the distance itself, an ulp below it, and around it, for a surface off by a narrow peak,
+// one off everywhere, and a subdivided control mesh (a compress verify's question).
+TEST(SurfaceDistance, WithinIsTheComparisonOfTheWholeMeasurement) {
+  const mm::Mesh s = icosphere(3);
+  mm::Mesh bumped = s, big = s;
+  bumped.points.row(0) *= 1.2;
+  big.points *= 1.1;
+  const mm::Mesh control = icosphere(1);
+  const mm::MeasuredSurface part(s, fast());
+  const auto check = [](double h, const std::function<bool(double)>& within) {
+    ASSERT_GT(h, 0);
+    for (double limit : {h, std::nextafter(h, 0.0), std::nextafter(h, 1.0), h * (1 - 1e-13), h * (1 + 1e-13),
+                         0.999 * h, 1.001 * h, 0.5 * h, 2 * h, 0.0, std::numeric_limits<double>::infinity()})
+      EXPECT_EQ(within(limit), h <= limit) << "limit " << limit << ", distance " << h;
+  };
+  for (const mm::Mesh* other : {&bumped, &big}) {
+    const double h = mm::surface_distance(s, *other, fast()).hausdorff_relative();
+    check(h, [&](double limit) { return mm::surface_within(part, *other, limit); });
+  }
+  const double h = mm::decoded_distance(s, control, 2, fast()).hausdorff_relative();
+  check(h, [&](double limit) { return mm::decoded_within(part, control, 2, limit); });
+  // Bad input fails as a measurement does.
+  mm::Mesh flat = control;
+  flat.points.setZero();
+  EXPECT_THROW(mm::surface_within(part, flat, 1.0), mm::InputError);
 }
 
 // A part measured once against many surfaces (MeasuredSurface): every measurement gives the

@@ -1,7 +1,8 @@
 // TriangleDistanceTree must give CGAL's AABB tree numbers bit for bit (the quality reports and
 // compress's tolerance decisions were made with CGAL's): queries near, on and far from the
 // surfaces of a curved CAD part and of a subdivided control mesh, with and without hints; and
-// the triangle a query names (triangle_of) is one at the distance it reports.
+// the triangle a query names (triangle_of) is one at the distance it reports; and within() (a
+// tolerance check's question) never says yes for a radius below the distance.
 #include <gtest/gtest.h>
 
 #include <CGAL/AABB_traits.h>
@@ -58,7 +59,7 @@ void expect_cgal_numbers(const mm::Mesh& mesh, const mm::Mesh& query_surface, in
     points[k] += scale * Eigen::Vector3d(u(rng), u(rng), u(rng));
   }
   for (int k = 0; k < 20; ++k) points.push_back(Eigen::Vector3d(u(rng), u(rng), u(rng)) * 3 * diag);
-  int hint = -1, mismatches = 0, misnamed = 0;
+  int hint = -1, mismatches = 0, misnamed = 0, wrong_within = 0;
   for (size_t k = 0; k < points.size(); ++k) {
     const auto& p = points[k];
     const double expected = reference.squared_distance(K::Point_3(p.x(), p.y(), p.z()));
@@ -76,9 +77,28 @@ void expect_cgal_numbers(const mm::Mesh& mesh, const mm::Mesh& query_surface, in
                                 K::Compute_squared_distance_3()(q, K::Construct_projected_point_3()(named, q)));
     if (!same_bits(own, got) && ++misnamed <= 5)
       ADD_FAILURE() << "query " << k << ": the triangle named is at " << own << ", not " << got;
+    // within(): never true for a radius below the distance, always true for one clearly above
+    // it (a millionth of the diagonal, far above the rounding slack), whatever the hint.
+    const double d = std::sqrt(expected);
+    for (const double r : {0.5 * d, d * (1 - 1e-9), d + 1e-6 * diag, 1.5 * d + 1e-3 * diag}) {
+      int wh = k % 3 == 0 ? -1 : k % 3 == 1 ? h : static_cast<int>((7 * k) % tris.size());
+      const bool in = tree.within(p, r, wh);
+      if (in && !(expected <= r * r) && ++wrong_within <= 5)
+        ADD_FAILURE() << "query " << k << ": within(" << r << ") for a distance of " << d;
+      if (!in && r >= d + 1e-6 * diag && ++wrong_within <= 5)
+        ADD_FAILURE() << "query " << k << ": not within(" << r << ") for a distance of " << d;
+      // The hint it leaves names a triangle within the radius.
+      if (in) {
+        const K::Triangle_3& found = cgal[static_cast<size_t>(tree.triangle_of(wh))];
+        const double at = K::Compute_squared_distance_3()(q, K::Construct_projected_point_3()(found, q));
+        if (!(std::sqrt(at) <= r) && ++wrong_within <= 5)
+          ADD_FAILURE() << "query " << k << ": within(" << r << ") found a triangle at " << std::sqrt(at);
+      }
+    }
   }
   EXPECT_EQ(mismatches, 0) << "of " << points.size() << " queries";
   EXPECT_EQ(misnamed, 0) << "of " << points.size() << " queries";
+  EXPECT_EQ(wrong_within, 0) << "of " << points.size() << " queries";
   EXPECT_THROW(tree.triangle_of(-1), std::out_of_range);
   EXPECT_THROW(tree.triangle_of(static_cast<int>(tris.size())), std::out_of_range);
 }

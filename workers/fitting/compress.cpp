@@ -175,7 +175,7 @@ bool confirmed(const CompressState& s, const Mesh& unit_box_control) {
   if (!s.options.verify) return true;
   Mesh candidate = unit_box_control;
   undo(s.out.normalization, candidate.points);
-  return s.options.verify(candidate) <= s.options.tolerance;
+  return s.options.verify(candidate);
 }
 
 // The decimate-and-fit rounds.

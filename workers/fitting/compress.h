@@ -36,12 +36,13 @@ struct CompressOptions {
   // meets the tolerance varies with it by 10-20 %, so benchmarks compare over several.
   std::uint64_t seed = 1;
   // Optional: a denser measurement of a candidate control mesh (the part's units, creases and
-  // corners tagged): its symmetric Hausdorff distance relative to the part's bounding-box
-  // diagonal. When set, a round meets the tolerance only if this measurement does too (the fit's
-  // own measurement samples the subdivided surface at its vertices and can miss a narrow peak
-  // between them: blade 0.46 % by the fit, 0.53 % by the quality code's dense samples).
-  // A measurement may stop once it is known to exceed the tolerance and return any larger value.
-  std::function<double(const Mesh& control)> verify;
+  // corners tagged): whether its symmetric Hausdorff distance relative to the part's
+  // bounding-box diagonal is within `tolerance`. When set, a round meets the tolerance only if
+  // this measurement says so too (the fit's own measurement samples the subdivided surface at
+  // its vertices and can miss a narrow peak between them: blade 0.46 % by the fit, 0.53 % by the
+  // quality code's dense samples). Only the answer counts (quality/surface_distance.h's
+  // decoded_within gives it without the numbers).
+  std::function<bool(const Mesh& control)> verify;
 };
 
 // A control polyhedron that met the tolerance, in the part's units, numbered for the stream.

@@ -254,7 +254,7 @@ PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
     // The original's samples and tree are built once, for every round and fallback angle.
     const MeasuredSurface measured(original);
     options.verify = [&measured, levels = options.levels, tolerance = options.tolerance](const Mesh& control) {
-      return decoded_hausdorff_within(measured, control, levels, tolerance);
+      return decoded_within(measured, control, levels, tolerance);
     };
     a.compression = compress_with_fallback(original, options, params.fallback_angles, source);
   } catch (const InputError&) {

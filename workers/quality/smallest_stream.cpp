@@ -13,12 +13,6 @@
 namespace mm {
 namespace {
 
-// A stream and its decoded surface's measured distance (no bytes: none found).
-struct MeasuredStream {
-  std::vector<std::uint8_t> bytes;
-  SurfaceDistance distance;
-};
-
 // Rate-distortion snapping (CodecParams::snap_cells) at one grid: spends the tolerance the
 // decoded surface leaves unused on bytes. Allowances come from the plain stream's per-coordinate
 // slack (quality/coordinate_slack.h) times a scale (kSnapScales): the slack is a first-order bound that
@@ -30,9 +24,9 @@ struct MeasuredStream {
 // those coordinates frozen instead lets the greedy coder move others and missed again: abc8
 // 0.598 -> 0.531 -> 0.535 -> 0.590 %). The repair's slack uses the dense measurement's own part
 // samples (MeasuredSurface::samples), so a violation the measurement saw is seen; with a
-// quarter of them bracket-3's violation was missed. The decoded candidate is measured like the
-// plain one (decoded_distance); returns the smallest that meets the tolerances and is smaller
-// than `smaller_than`, or no bytes.
+// quarter of them bracket-3's violation was missed. The decoded candidate is checked like the
+// plain one (`met`); returns the smallest that meets the tolerances and is smaller than
+// `smaller_than`, or no bytes.
 // Scales tried, each at B and B + 1. Measured on the bench parts (bytes with 4 alone -> with 8
 // alone -> with 2 alone): abc5 456 / 445 / 441, abc8 564 / 574 / 583, bracket-3 508 / 520 / 521,
 // rocker 1283 / 1280 / 1353, blade 1660 / 1960 / 1755, abc9 171 / 170 / 172, abc6 207 / 211 /
@@ -53,16 +47,16 @@ static_assert(kCloseToTolerance <= kDescentReach);
 // Start vertices tried for the chosen polyhedron's numbering (evenly spaced in its numbering).
 constexpr int kStarts = 64;
 
-MeasuredStream snap_search(const MeasuredSurface& part, const Mesh& control, int levels, CodecParams params, double tolerance,
-                          std::size_t smaller_than, const std::function<std::optional<SurfaceDistance>(const Mesh&)>& met,
-                          const std::string& name) {
+std::vector<std::uint8_t> snap_search(const MeasuredSurface& part, const Mesh& control, int levels, CodecParams params,
+                                      double tolerance, std::size_t smaller_than,
+                                      const std::function<bool(const Mesh&)>& met, const std::string& name) {
   // The slack is a guide (the measurement decides), so a quarter of the dense samples will do.
   SamplingParams guide;
   guide.samples = 50000;
   const DecodedStream plain = decode(encode(control, params), name);
   const double step = plain.quantization.step;
   const std::vector<double> slack = coordinate_slack(part, plain.mesh, levels, tolerance, guide);
-  MeasuredStream best;
+  std::vector<std::uint8_t> best;
   for (double scale : kSnapScales) {
     CodecParams snapping = params;
     snapping.snap_cells.resize(slack.size());
@@ -72,9 +66,9 @@ MeasuredStream snap_search(const MeasuredSurface& part, const Mesh& control, int
     std::vector<std::uint8_t> bytes = encode(control, snapping);
     for (int repair = 0; bytes.size() < smaller_than; ++repair) {
       DecodedStream snapped = decode(bytes, name);
-      if (const auto d = met(snapped.mesh)) {
+      if (met(snapped.mesh)) {
         smaller_than = bytes.size();
-        best = {std::move(bytes), *d};
+        best = std::move(bytes);
         break;
       }
       if (repair == kSnapRepairs) break;
@@ -102,11 +96,10 @@ MeasuredStream snap_search(const MeasuredSurface& part, const Mesh& control, int
 // The stream's grid values numbered from other start vertices (in_traversal_order): the
 // traversal, and with it the ranks and predictions, follow the start, and over 64 starts the
 // smallest stream is 1-3 % below the first (blade 1177 -> 1156 bytes, abc6 207 -> 203). The
-// surface is the same, but a smaller stream is measured again, so that the distance reported is
-// the written stream's. Returns no bytes when no start codes smaller.
-MeasuredStream cheapest_numbering(const std::vector<std::uint8_t>& stream, int bits, CodecParams params,
-                                 const std::function<std::optional<SurfaceDistance>(const Mesh&)>& met,
-                                 const std::string& name) {
+// surface is the same, but the samples a measurement takes of it follow its numbering, so a
+// smaller stream is checked again. Returns no bytes when no start codes smaller.
+std::vector<std::uint8_t> cheapest_numbering(const std::vector<std::uint8_t>& stream, int bits, CodecParams params,
+                                             const std::function<bool(const Mesh&)>& met, const std::string& name) {
   const DecodedStream written = decode(stream, name);
   params.quant_bits = bits;
   const int n = written.mesh.num_vertices(), starts = std::min(n, kStarts);
@@ -115,10 +108,8 @@ MeasuredStream cheapest_numbering(const std::vector<std::uint8_t>& stream, int b
     auto bytes = encode(in_traversal_order(written.mesh, static_cast<int>(static_cast<long long>(k) * n / starts)), params);
     if (bytes.size() < (best.empty() ? stream.size() : best.size())) best = std::move(bytes);
   }
-  if (best.empty()) return {};
-  const auto d = met(decode(best, name).mesh);
-  if (!d) return {};
-  return {std::move(best), *d};
+  if (best.empty() || !met(decode(best, name).mesh)) return {};
+  return best;
 }
 
 }  // namespace
@@ -146,37 +137,38 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
     return m.hausdorff_relative() <= search.tolerance &&
            (search.rms_tolerance <= 0 || m.rms_relative() <= search.rms_tolerance);
   };
-  // The decoded surface's distance, or nothing when it is known to exceed `limit` times the
-  // tolerance (decoded_distance_within: a surface far off costs a few samples, not all).
-  const auto measure = [&measured_part, &search](const Mesh& decoded, double limit) {
-    return decoded_distance_within(measured_part, decoded, search.levels, limit * search.tolerance);
+  // Whether the decoded surface's Hausdorff distance is within `factor` times the tolerance: the
+  // answer without the numbers (decoded_within), which is all the search needs of a candidate.
+  // Only the stream written is measured whole (below).
+  const auto within = [&measured_part, &search](const Mesh& decoded, double factor) {
+    return decoded_within(measured_part, decoded, search.levels, factor * search.tolerance);
   };
-  // The distance of a surface that meets the tolerances, or nothing.
-  const std::function<std::optional<SurfaceDistance>(const Mesh&)> met =
-      [&measure, &meets](const Mesh& decoded) -> std::optional<SurfaceDistance> {
-    auto d = measure(decoded, 1.0);
-    if (d && meets(*d)) return d;
-    return std::nullopt;
+  // Whether it meets the tolerances: an RMS bound needs every sample's distance, so then the
+  // whole measurement (stopped early beyond the Hausdorff tolerance) decides.
+  const std::function<bool(const Mesh&)> met = [&](const Mesh& decoded) {
+    if (search.rms_tolerance <= 0) return within(decoded, 1.0);
+    const auto d = decoded_distance_within(measured_part, decoded, search.levels, search.tolerance);
+    return d && meets(*d);
   };
   CodecParams params;
   params.metadata = search.metadata;
   ChosenStream out;
+  bool measured = false;  // out.distance is the written stream's
   // The chosen polyhedron's points: its own, or descended on the grid (grid_descent.h).
   std::optional<Mesh> descended;
-  const auto keep = [&out, &meets, &descended](std::vector<std::uint8_t>&& bytes, const SurfaceDistance& m,
-                                               int bits, std::size_t k, std::optional<Mesh>&& on_grid) {
+  const auto keep = [&out, &descended](std::vector<std::uint8_t>&& bytes, int bits, std::size_t k,
+                                       std::optional<Mesh>&& on_grid) {
     out.bytes = std::move(bytes);
-    out.distance = m;
     out.bits = bits;
     out.polyhedron = static_cast<int>(k);
-    out.meets = meets(m);
     out.descended = on_grid.has_value();
     descended = std::move(on_grid);
   };
-  // Per polyhedron, the Hausdorff distance at its conservative bits (where measured).
-  std::vector<double> at_bound(polyhedra.size(), std::numeric_limits<double>::infinity());
+  // Per polyhedron, whether it came within kCloseToTolerance of the tolerance at its
+  // conservative bits (where checked).
+  std::vector<char> close_at_bound(polyhedra.size(), 0);
   // The fewest bits per polyhedron, the smallest stream over them. A stream no smaller than the
-  // best so far ends a polyhedron's search unmeasured: more bits only add bytes.
+  // best so far ends a polyhedron's search unchecked: more bits only add bytes.
   for (std::size_t k = 0; k < polyhedra.size(); ++k) {
     const Mesh& control = *polyhedra[k];
     const int bound = search.bits > 0 ? search.bits : conservative_bits(control, search.tolerance);
@@ -186,28 +178,40 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
       p.quant_bits = b;
       auto candidate = encode(control, p);
       if (out.meets && candidate.size() >= out.bytes.size()) break;
-      // Beyond the descent's reach (and kCloseToTolerance below it) a miss is all the search
-      // needs to know, unless it is the stream written when nothing meets the tolerance.
-      const bool fallback = !out.meets && b == bound && out.bytes.empty();
-      const auto measured = measure(decode(candidate, name).mesh,
-                                    fallback ? std::numeric_limits<double>::infinity() : kDescentReach);
-      if (!measured) continue;
-      const SurfaceDistance& m = *measured;
-      if (b == bound) at_bound[k] = m.hausdorff_relative();
-      // Nothing met yet: keep the first polyhedron's last tried, so that something is written.
-      if (meets(m) || (!out.meets && b == bound && out.bytes.empty())) {
-        keep(std::move(candidate), m, b, k, std::nullopt);
+      const Mesh decoded = decode(candidate, name).mesh;
+      // Nothing met yet and this is the first polyhedron's last try: it is written if nothing
+      // meets the tolerance later, so it is measured whole.
+      if (!out.meets && b == bound && out.bytes.empty()) {
+        const SurfaceDistance m = decoded_distance(measured_part, decoded, search.levels);
+        keep(std::move(candidate), b, k, std::nullopt);
+        out.distance = m;
+        out.meets = meets(m);
+        measured = true;
+        close_at_bound[k] = m.hausdorff_relative() <= kCloseToTolerance * search.tolerance;
         if (out.meets) break;
+        if (!(m.hausdorff_relative() <= kDescentReach * search.tolerance)) continue;
+      } else {
+        if (met(decoded)) {
+          keep(std::move(candidate), b, k, std::nullopt);
+          out.meets = true;
+          measured = false;
+          break;
+        }
+        // Beyond the descent's reach (and kCloseToTolerance below it) a miss is all the search
+        // needs to know.
+        if (!within(decoded, kDescentReach)) continue;
+        if (b == bound) close_at_bound[k] = within(decoded, kCloseToTolerance);
       }
-      // Missed at these bits: the grid values chosen for the surface may still meet them, if it
-      // missed by little.
-      if (!meets(m) && m.hausdorff_relative() <= kDescentReach * search.tolerance && search.snap &&
-          search.bits == 0 && search.fit_met) {
+      // Missed at these bits by little: the grid values chosen for the surface may still meet
+      // them.
+      if (search.snap && search.bits == 0 && search.fit_met) {
         Mesh on_grid = descended_on_grid(control, b, search.levels);
         auto bytes = encode(on_grid, p);
         if (out.meets && bytes.size() >= out.bytes.size()) break;
-        if (const auto md = met(decode(bytes, name).mesh)) {
-          keep(std::move(bytes), *md, b, k, std::move(on_grid));
+        if (met(decode(bytes, name).mesh)) {
+          keep(std::move(bytes), b, k, std::move(on_grid));
+          out.meets = true;
+          measured = false;
           break;
         }
       }
@@ -216,46 +220,49 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
   // A polyhedron the fit measured within the tolerance can miss it at the conservative bits when
   // it met it by a hair (abc6 at seed 3: 0.515 % at 10 bits, 0.498 % at 16): rather than write a
   // stream off the tolerance, finer grids for those that came close, every other bit up to the
-  // format's limit. Nothing met above, so every polyhedron was measured at its bound there.
+  // format's limit. Nothing met above, so every polyhedron was checked at its bound there.
   if (!out.meets && search.bits == 0 && search.fit_met) {
     for (std::size_t k = 0; k < polyhedra.size() && !out.meets; ++k) {
-      if (!(at_bound[k] <= kCloseToTolerance * search.tolerance)) continue;
+      if (!close_at_bound[k]) continue;
       const Mesh& control = *polyhedra[k];
       CodecParams p = params;
       for (int b = conservative_bits(control, search.tolerance) + 2; b <= kMaxQuantBits && !out.meets; b += 2) {
         p.quant_bits = b;
         auto candidate = encode(control, p);
-        if (const auto m = met(decode(candidate, name).mesh)) keep(std::move(candidate), *m, b, k, std::nullopt);
+        if (met(decode(candidate, name).mesh)) {
+          keep(std::move(candidate), b, k, std::nullopt);
+          out.meets = true;
+          measured = false;
+        }
       }
     }
   }
   // The cheapest numbering of the chosen stream; then snapping on the chosen polyhedron, at its
-  // bits and one more: each snapped stream is decoded and measured like the plain ones, and the
+  // bits and one more: each snapped stream is decoded and checked like the plain ones, and the
   // smallest that meets the tolerances wins (the plain one included), numbered cheapest too.
   const auto renumber = [&]() {
-    MeasuredStream c = cheapest_numbering(out.bytes, out.bits, params, met, name);
-    if (c.bytes.empty()) return;
-    out.bytes = std::move(c.bytes);
-    out.distance = c.distance;
+    std::vector<std::uint8_t> c = cheapest_numbering(out.bytes, out.bits, params, met, name);
+    if (!c.empty()) out.bytes = std::move(c);
   };
   if (search.bits == 0 && out.meets) renumber();
   out.unsnapped_bytes = out.bytes.size();
   if (search.snap && search.bits == 0 && out.meets) {
     const Mesh& control = descended ? *descended : *polyhedra[static_cast<std::size_t>(out.polyhedron)];
     const int top = std::min(out.bits + 1, conservative_bits(control, search.tolerance));
-    const double tolerance = search.tolerance * out.distance.diagonal;
+    const double tolerance = search.tolerance * measured_part.diagonal();
     for (int bits = out.bits; bits <= top; ++bits) {
       CodecParams at = params;
       at.quant_bits = bits;
-      MeasuredStream s = snap_search(measured_part, control, search.levels, at, tolerance, out.bytes.size(), met, name);
-      if (s.bytes.empty()) continue;
-      out.bytes = std::move(s.bytes);
-      out.distance = s.distance;
+      std::vector<std::uint8_t> s = snap_search(measured_part, control, search.levels, at, tolerance, out.bytes.size(), met, name);
+      if (s.empty()) continue;
+      out.bytes = std::move(s);
       out.bits = bits;
       out.snapped = true;
     }
     if (out.snapped) renumber();
   }
+  // The numbers reported are the written stream's, measured as `meshmark compare` measures it.
+  if (!measured) out.distance = decoded_distance(measured_part, decode(out.bytes, name).mesh, search.levels);
   return out;
 }
 

@@ -3,9 +3,11 @@
 // values, or with grid values chosen for the surface: quality/grid_descent.h), the smallest; then
 // the chosen polyhedron is numbered from the start vertex that codes smallest, and
 // rate-distortion snapping (CodecParams::snap_cells) spends the tolerance the chosen surface
-// leaves unused on bytes. Every candidate stream is decoded, subdivided and measured by
-// decoded_distance, the measurement `meshmark compare` reports: nothing is accepted on an
-// estimate. Deterministic for the same inputs.
+// leaves unused on bytes. Every candidate stream is decoded, subdivided and checked against the
+// tolerance by decoded_within, which answers exactly as decoded_distance (the measurement
+// `meshmark compare` reports) would compare, without its numbers; the stream written is then
+// measured whole for its report: nothing is accepted on an estimate. Deterministic for the same
+// inputs.
 #pragma once
 #include <cstdint>
 #include <map>

@@ -120,19 +120,30 @@ SamplingParams other_direction(const SamplingParams& params) {
 class Direction {
  public:
   Direction(const std::vector<Eigen::Vector3d>& points, const TriangleDistanceTree& tree)
-      : tree_(tree), points_(points), squared_(points.size(), 0.0) {}
+      : tree_(tree), points_(points) {}
   // Measures samples 0, stride, 2 stride, ... but those a pass with stride `coarser` measured
   // (0: none). False as soon as one lies farther than limit * diagonal (exactly as
   // hausdorff_relative() compares: distance / diagonal).
   bool measure(std::size_t stride, std::size_t coarser, double limit, double diagonal) {
-    for (std::size_t i = 0; i < points_.size(); i += stride) {
-      if (coarser > 0 && i % coarser == 0) continue;
-      // Consecutive samples lie on the same or neighbouring triangles: each query starts from
-      // the previous answer.
+    squared_.resize(points_.size(), 0.0);
+    // Consecutive samples lie on the same or neighbouring triangles: each query starts from the
+    // previous answer.
+    return each_sample(stride, coarser, [&](std::size_t i) {
       squared_[i] = tree_.squared_distance(points_[i], hint_);
-      if (std::sqrt(squared_[i]) / diagonal > limit) return false;
-    }
-    return true;
+      return !(std::sqrt(squared_[i]) / diagonal > limit);
+    });
+  }
+  // The same decision as measure (false: a sample farther than limit * diagonal), but a sample
+  // is measured only when no triangle lies certainly within the limit
+  // (TriangleDistanceTree::within): the numbers are not needed, only the answer.
+  bool within(std::size_t stride, std::size_t coarser, double limit, double diagonal) {
+    // A hair inside the limit, so that distances within rounding of it are measured and compared
+    // exactly as measure() compares them.
+    const double r = limit * diagonal * (1 - 1e-12);
+    return each_sample(stride, coarser, [&](std::size_t i) {
+      return tree_.within(points_[i], r, hint_) ||
+             !(std::sqrt(tree_.squared_distance(points_[i], hint_)) / diagonal > limit);
+    });
   }
   OneSidedDistance stats() const {
     OneSidedDistance d;
@@ -150,9 +161,19 @@ class Direction {
   }
 
  private:
+  // Calls f on samples 0, stride, 2 stride, ... but those a pass with stride `coarser` had (0:
+  // none) until it returns false.
+  template <class F>
+  bool each_sample(std::size_t stride, std::size_t coarser, F f) {
+    const auto skip = [coarser](std::size_t i) { return coarser > 0 && i % coarser == 0; };
+    for (std::size_t i = 0; i < points_.size(); i += stride)
+      if (!skip(i) && !f(i)) return false;
+    return true;
+  }
+
   const TriangleDistanceTree& tree_;
   const std::vector<Eigen::Vector3d>& points_;
-  std::vector<double> squared_;
+  std::vector<double> squared_;  // sized by the first measure()
   int hint_ = -1;
 };
 
@@ -203,6 +224,7 @@ const std::vector<Eigen::Vector3d>& MeasuredSurface::samples() const {
   return impl_->samples;
 }
 
+
 OneSidedDistance one_sided_distance(const Mesh& from, const Mesh& to, const SamplingParams& params) {
   const auto tree = tree_of(to);
   const std::vector<Eigen::Vector3d> points = samples_of(from, params);
@@ -229,13 +251,8 @@ std::optional<SurfaceDistance> decoded_distance_within(const MeasuredSurface& pa
   return surface_distance_within(part, decompress_to_level(control, levels), limit);
 }
 
-double decoded_hausdorff_within(const Mesh& part, const Mesh& control, int levels, double limit) {
-  return decoded_hausdorff_within(MeasuredSurface(part), control, levels, limit);
-}
-
-double decoded_hausdorff_within(const MeasuredSurface& part, const Mesh& control, int levels, double limit) {
-  const auto d = decoded_distance_within(part, control, levels, limit);
-  return d ? d->hausdorff_relative() : std::numeric_limits<double>::infinity();
+bool decoded_within(const MeasuredSurface& part, const Mesh& control, int levels, double limit) {
+  return surface_within(part, decompress_to_level(control, levels), limit);
 }
 
 SurfaceDistance surface_distance(const Mesh& a, const Mesh& b, const SamplingParams& params) {
@@ -245,6 +262,21 @@ SurfaceDistance surface_distance(const Mesh& a, const Mesh& b, const SamplingPar
 std::optional<SurfaceDistance> surface_distance_within(const Mesh& a, const Mesh& b, double limit,
                                                        const SamplingParams& params) {
   return surface_distance_within(MeasuredSurface(a, params), b, limit);
+}
+
+bool surface_within(const MeasuredSurface& measured, const Mesh& b, double limit) {
+  const double diagonal = measured.diagonal();
+  const auto b_tree = tree_of(b);
+  Direction ab(measured.samples(), *b_tree);
+  const std::vector<Eigen::Vector3d> b_samples = samples_of(b, other_direction(measured.params()));
+  Direction ba(b_samples, measured.tree());
+  if (std::isinf(limit)) return true;
+  std::size_t coarser = 0;
+  for (std::size_t stride : kPasses) {
+    if (!ab.within(stride, coarser, limit, diagonal) || !ba.within(stride, coarser, limit, diagonal)) return false;
+    coarser = stride;
+  }
+  return true;
 }
 
 std::optional<SurfaceDistance> surface_distance_within(const MeasuredSurface& measured, const Mesh& b, double limit) {

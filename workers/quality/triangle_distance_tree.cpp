@@ -138,6 +138,49 @@ int TriangleDistanceTree::triangle_of(int hint) const {
   return impl_->index[static_cast<size_t>(hint)];
 }
 
+bool TriangleDistanceTree::within(const Eigen::Vector3d& q, double r, int& hint) const {
+  const Impl& im = *impl_;
+  // The skip tests of squared_distance trust the cheap distance to eps; so does this acceptance.
+  const double sure = r - im.eps;
+  if (!(sure > 0)) return false;
+  const double r2 = sure * sure;
+  const double p[3] = {q.x(), q.y(), q.z()};
+  const auto close = [&](int j) {
+    const Tri& s = im.tris[static_cast<size_t>(j)];
+    return ericson2(s.v[0], s.v[1], s.v[2], p) <= r2;
+  };
+  if (hint >= 0 && hint < static_cast<int>(im.tris.size()) && close(hint)) return true;
+  int stack[128];
+  int top = 0;
+  if (box2(im.root_lo, im.root_hi, p) <= r2) stack[top++] = 0;
+  while (top > 0) {
+    const Node& nd = im.nodes[static_cast<size_t>(stack[--top])];
+    if (nd.count > 0) {
+      for (int j = nd.first; j < nd.first + nd.count; ++j) {
+        const Tri& s = im.tris[static_cast<size_t>(j)];
+        if (box2(s.lo, s.hi, p) > r2) continue;
+        if (close(j)) {
+          hint = j;
+          return true;
+        }
+      }
+      continue;
+    }
+    const int at = static_cast<int>(&nd - im.nodes.data()), l = at + 1, rt = nd.first;
+    double dl, dr;
+    child_box_distances(im.child_boxes[static_cast<size_t>(at)], p, dl, dr);
+    // The nearer child on top: it is the likelier to hold a triangle within r.
+    if (dl <= dr) {
+      if (dr <= r2) stack[top++] = rt;
+      if (dl <= r2) stack[top++] = l;
+    } else {
+      if (dl <= r2) stack[top++] = l;
+      if (dr <= r2) stack[top++] = rt;
+    }
+  }
+  return false;
+}
+
 double TriangleDistanceTree::squared_distance(const Eigen::Vector3d& q, int& hint) const {
   const Impl& im = *impl_;
   const double p[3] = {q.x(), q.y(), q.z()};

@@ -26,6 +26,13 @@ class TriangleDistanceTree {
   // was, to start from (-1 or any out-of-range value: nowhere); an opaque position, not the
   // triangle's index. The answer does not depend on it.
   double squared_distance(const Eigen::Vector3d& q, int& hint) const;
+  // Whether squared_distance(q) is certainly at most r * r: true when some triangle lies within r
+  // less the rounding slack the tree allows between its cheap distance and CGAL's (so a distance
+  // within a few ulps of r gives false, and the caller measures it). Stops at the first such
+  // triangle, `hint`'s first: a tolerance check then costs one triangle per sample near the
+  // surface instead of a search for the closest. `hint` as for squared_distance (a triangle found
+  // within r afterwards, not necessarily the closest).
+  bool within(const Eigen::Vector3d& q, double r, int& hint) const;
   // The index (in the constructor's list) of the triangle a query's `hint` names afterwards: the
   // closest one (of equally close ones, the first the search met).
   int triangle_of(int hint) const;
