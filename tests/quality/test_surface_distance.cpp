@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <array>
@@ -292,6 +293,16 @@ TEST(SurfaceDistance, APartMeasuredOnceGivesEachMeasurementsOwnNumbers) {
     EXPECT_TRUE(same(*d, fresh_bumped));
     EXPECT_TRUE(same(mm::decoded_distance(part, control, 2), fresh_decoded));
   }
+  // A measured part queries its samples along a curve through space (sample_order), one
+  // measured plainly in index order: the same numbers.
+  const mm::OneSidedDistance plain = mm::one_sided_distance(s, big, fast());
+  EXPECT_EQ(plain.max, fresh_big.a_to_b.max);
+  EXPECT_EQ(plain.mean, fresh_big.a_to_b.mean);
+  EXPECT_EQ(plain.rms, fresh_big.a_to_b.rms);
+  std::vector<int> sorted = part.sample_order();
+  std::sort(sorted.begin(), sorted.end());
+  for (std::size_t i = 0; i < sorted.size(); ++i) ASSERT_EQ(sorted[i], static_cast<int>(i));
+  EXPECT_NE(part.sample_order(), sorted);
   // Shared by threads, its first measurement among them.
   const mm::MeasuredSurface shared(s, fast());
   std::vector<mm::SurfaceDistance> got(4);

@@ -61,6 +61,9 @@ class MeasuredSurface {
   // Its closest-point tree and its samples (sample_surface with params()), built on first use.
   const TriangleDistanceTree& tree() const;
   const std::vector<Eigen::Vector3d>& samples() const;
+  // The samples' indices in the order a measurement queries most of them in: along a curve
+  // through space, so that each query starts from a nearby sample's answer.
+  const std::vector<int>& sample_order() const;
   struct Impl;
 
  private:
