@@ -399,8 +399,10 @@ void emit_rows(const Level& L, const Adjacency& a, const std::vector<int>& fpoin
 }
 
 // Child topology, numbered as OpenSubdiv: faces by parent face; edges interior to faces first
-// (by face), then the two halves of each parent edge.
-Level child_level(const Level& L, const std::vector<int>& fpoint, int nfp) {
+// (by face), then the two halves of each parent edge. Without `with_edges` only the faces and
+// corners (a last level nothing refines further: its edge arrays were a third of a
+// decompression's memory).
+Level child_level(const Level& L, const std::vector<int>& fpoint, int nfp, bool with_edges = true) {
   const int nv = L.nv, nf = L.nf(), ne = L.ne();
   const int nchild = nv + nfp + ne;
   auto epoint = [&](int e) { return nv + nfp + e; };
@@ -415,12 +417,14 @@ Level child_level(const Level& L, const std::vector<int>& fpoint, int nfp) {
     nchild_faces += s == 3 ? 4 : s;
     nchild_corners += s == 3 ? 12 : 4 * static_cast<size_t>(s);
   }
-  C.everts.resize(nint + 2 * static_cast<size_t>(ne));
-  C.ecrease.assign(C.everts.size(), 0);
   C.foff.resize(nchild_faces + 1);
   C.fverts.resize(nchild_corners);
-  C.fedges.resize(C.fverts.size());
-  for (int e = 0; e < ne; ++e) {
+  if (with_edges) {
+    C.everts.resize(nint + 2 * static_cast<size_t>(ne));
+    C.ecrease.assign(C.everts.size(), 0);
+    C.fedges.resize(C.fverts.size());
+  }
+  for (int e = 0; with_edges && e < ne; ++e) {
     C.everts[nint + 2 * e] = {epoint(e), L.everts[e][0]};
     C.everts[nint + 2 * e + 1] = {epoint(e), L.everts[e][1]};
     C.ecrease[nint + 2 * e] = C.ecrease[nint + 2 * e + 1] = L.ecrease[e];
@@ -430,8 +434,8 @@ Level child_level(const Level& L, const std::vector<int>& fpoint, int nfp) {
   auto push_face = [&](std::initializer_list<int> vs, std::initializer_list<int> es) {
     auto ev = es.begin();
     for (int v : vs) {
-      C.fverts[cpos] = v;
-      C.fedges[cpos++] = *ev++;
+      if (with_edges) C.fedges[cpos] = *ev++;
+      C.fverts[cpos++] = v;
     }
     C.foff[++cf] = cpos;
   };
@@ -444,9 +448,11 @@ Level child_level(const Level& L, const std::vector<int>& fpoint, int nfp) {
       const int e0 = fe[0], e1 = fe[1], e2 = fe[2];
       const int p0 = epoint(e0), p1 = epoint(e1), p2 = epoint(e2);
       const int i0 = ie, i1 = ie + 1, i2 = ie + 2;
-      C.everts[i0] = {p0, p2};
-      C.everts[i1] = {p1, p0};
-      C.everts[i2] = {p2, p1};
+      if (with_edges) {
+        C.everts[i0] = {p0, p2};
+        C.everts[i1] = {p1, p0};
+        C.everts[i2] = {p2, p1};
+      }
       ie += 3;
       push_face({fv[0], p0, p2}, {half(e0, fv[0]), i0, half(e2, fv[0])});
       push_face({p0, fv[1], p1}, {half(e0, fv[1]), half(e1, fv[1]), i1});
@@ -454,7 +460,8 @@ Level child_level(const Level& L, const std::vector<int>& fpoint, int nfp) {
       push_face({p1, p2, p0}, {i2, i0, i1});
     } else {
       const int fp = fpoint[f], i_first = ie;
-      for (int j = 0; j < s; ++j) C.everts[ie++] = {fp, epoint(fe[j])};
+      for (int j = 0; j < s; ++j, ++ie)
+        if (with_edges) C.everts[ie] = {fp, epoint(fe[j])};
       for (int j = 0; j < s; ++j) {
         const int jp = (j + s - 1) % s;
         const int v = fv[j], en = fe[j], ep = fe[jp];
@@ -501,13 +508,32 @@ SparseOperator compose(const SparseOperator& A, const SparseOperator& B) {
   return C;
 }
 
-Mesh to_mesh(const Level& L, const std::vector<int>& tagged_corners) {
+// A level's tagged crease edges (i < j), in edge order.
+std::vector<std::pair<int, int>> level_creases(const Level& L) {
+  std::vector<std::pair<int, int>> out;
+  for (int e = 0; e < L.ne(); ++e)
+    if (L.ecrease[e]) out.emplace_back(std::min(L.everts[e][0], L.everts[e][1]), std::max(L.everts[e][0], L.everts[e][1]));
+  return out;
+}
+
+// The crease edges of L's child level, in the child's edge order, from L alone: every tagged
+// edge's two halves, the edge point with each end (interior edges are never tagged).
+std::vector<std::pair<int, int>> child_creases(const Level& L, int nfp) {
+  std::vector<std::pair<int, int>> out;
+  for (int e = 0; e < L.ne(); ++e)
+    if (L.ecrease[e])
+      for (int end : L.everts[e]) {
+        const int ep = L.nv + nfp + e;
+        out.emplace_back(std::min(ep, end), std::max(ep, end));
+      }
+  return out;
+}
+
+Mesh to_mesh(const Level& L, std::vector<std::pair<int, int>> creases, const std::vector<int>& tagged_corners) {
   Mesh m;
   m.faces.resize(L.nf());
   for (int f = 0; f < L.nf(); ++f) m.faces[f].assign(L.fverts.begin() + L.foff[f], L.fverts.begin() + L.foff[f + 1]);
-  for (int e = 0; e < L.ne(); ++e)
-    if (L.ecrease[e]) m.creases.emplace_back(std::min(L.everts[e][0], L.everts[e][1]),
-                                             std::max(L.everts[e][0], L.everts[e][1]));
+  m.creases = std::move(creases);
   m.corners = tagged_corners;
   return m;
 }
@@ -598,12 +624,19 @@ Steps build_steps(const Mesh& control, int levels, Points* points, RefinedTopolo
       MatrixSink sink(out.steps.back(), nchild, L.nv);
       emit_rows(L, a, fpoint, sink);
     }
+    // Decompression's last level: faces only, its creases from the level before.
+    if (points && !topology && k + 1 == levels) {
+      std::vector<std::pair<int, int>> creases = child_creases(L, nfp);
+      L = child_level(L, fpoint, nfp, false);
+      out.refined = to_mesh(L, std::move(creases), corners);
+      return out;
+    }
     L = child_level(L, fpoint, nfp);
   }
   if (topology)
     fill_topology(L, *topology);
   else
-    out.refined = to_mesh(L, corners);
+    out.refined = to_mesh(L, level_creases(L), corners);
   return out;
 }
 
