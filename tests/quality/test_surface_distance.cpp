@@ -238,15 +238,22 @@ TEST(SurfaceDistance, WithinALimitTheSameNumbersBeyondItNothing) {
   EXPECT_FALSE(mm::decoded_distance_within(s, control, 2, 0.5 * whole.hausdorff_relative(), fast()).has_value());
 }
 
+// A sphere and what the tests measure against it: the sphere with one vertex out (a narrow cone
+// on one side), the sphere scaled (off everywhere), and a coarse control mesh of it.
+struct Sphere {
+  mm::Mesh part = icosphere(3), bumped = part, big = part, control = icosphere(1);
+  Sphere() {
+    bumped.points.row(0) *= 1.2;
+    big.points *= 1.1;
+  }
+};
+
 // The answer alone (surface_within, decoded_within) is surface_distance's comparison exactly:
 // at the distance itself, an ulp below it, and around it, for a surface off by a narrow peak,
 // one off everywhere, and a subdivided control mesh (a compress verify's question).
 TEST(SurfaceDistance, WithinIsTheComparisonOfTheWholeMeasurement) {
-  const mm::Mesh s = icosphere(3);
-  mm::Mesh bumped = s, big = s;
-  bumped.points.row(0) *= 1.2;
-  big.points *= 1.1;
-  const mm::Mesh control = icosphere(1);
+  const Sphere x;
+  const mm::Mesh &s = x.part, &bumped = x.bumped, &big = x.big, &control = x.control;
   const mm::MeasuredSurface part(s, fast());
   const auto check = [](double h, const std::function<bool(double)>& within) {
     ASSERT_GT(h, 0);
@@ -270,11 +277,8 @@ TEST(SurfaceDistance, WithinIsTheComparisonOfTheWholeMeasurement) {
 // numbers of a fresh one, in any order, early-stopped ones between them, and from threads at
 // once; a bad part fails at its first measurement, as surface_distance does, and again after.
 TEST(SurfaceDistance, APartMeasuredOnceGivesEachMeasurementsOwnNumbers) {
-  const mm::Mesh s = icosphere(3);
-  mm::Mesh bumped = s, big = s;
-  bumped.points.row(0) *= 1.2;
-  big.points *= 1.1;
-  const mm::Mesh control = icosphere(1);
+  const Sphere x;
+  const mm::Mesh &s = x.part, &bumped = x.bumped, &big = x.big, &control = x.control;
   const mm::MeasuredSurface part(s, fast());
   const mm::SurfaceDistance fresh_bumped = mm::surface_distance(s, bumped, fast());
   const mm::SurfaceDistance fresh_big = mm::surface_distance(s, big, fast());
