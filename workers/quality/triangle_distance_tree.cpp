@@ -65,16 +65,16 @@ struct TriangleDistanceTree::Impl {
   double root_lo[3], root_hi[3];
   double eps = 0;            // distance slack of the skip tests (see closest())
 
-  // Boxes bottom-up (children come after their parent in pre-order); returns node's box.
-  Eigen::AlignedBox3d fill_boxes(int index, const std::vector<Eigen::AlignedBox3d>& box, const std::vector<int>& order) {
-    const Node& nd = nodes[static_cast<size_t>(index)];
+  // Boxes bottom-up (children come after their parent in pre-order); returns the node's box.
+  Eigen::AlignedBox3d fill_boxes(int node, const std::vector<Eigen::AlignedBox3d>& box, const std::vector<int>& order) {
+    const Node& nd = nodes[static_cast<size_t>(node)];
     Eigen::AlignedBox3d out;
     if (nd.count > 0) {
       for (int k = nd.first; k < nd.first + nd.count; ++k) out.extend(box[static_cast<size_t>(order[static_cast<size_t>(k)])]);
       return out;
     }
-    const Eigen::AlignedBox3d l = fill_boxes(index + 1, box, order), r = fill_boxes(nd.first, box, order);
-    BvhChildBoxes& cb = child_boxes[static_cast<size_t>(index)];
+    const Eigen::AlignedBox3d l = fill_boxes(node + 1, box, order), r = fill_boxes(nd.first, box, order);
+    BvhChildBoxes& cb = child_boxes[static_cast<size_t>(node)];
     for (int k = 0; k < 3; ++k) {
       cb.lo[k][0] = l.min()[k], cb.lo[k][1] = r.min()[k];
       cb.hi[k][0] = l.max()[k], cb.hi[k][1] = r.max()[k];
