@@ -12,7 +12,7 @@ namespace mm::service {
 // Call once at start-up, before threads: large blocks come from the heap (up to glibc's 32 MiB
 // ceiling), freed memory stays with the process for its next allocations, and the heap's first
 // 64 MiB are advised to use huge pages (madvise MADV_HUGEPAGE; the main thread's heap, not the
-// arenas of other threads).
+// arenas of other threads; heap the daemon's trim gives back and grows again is not advised).
 void reuse_freed_memory();
 
 // Gives the heap's free memory back to the system (malloc_trim); for a worker after each job,
