@@ -2,6 +2,7 @@
 // components, open boundaries, scale invariance, determinism, and clear failures.
 #include <filesystem>
 #include <numeric>
+#include <type_traits>
 
 #include "common/shared_meshes.h"
 #include "codec/stream.h"
@@ -223,6 +224,17 @@ TEST(Compress, SeedIsHonouredAndDeterministic) {
 // A caller's own measurement (CompressOptions::verify) decides whether a round meets the
 // tolerance: one that rejects everything leaves the tolerance unmet after every round, one that
 // accepts everything changes nothing.
+// verify takes a yes/no answer only: a function returning a distance (what it took before
+// 2026-12-02 15:00) does not compile into one that reads every non-zero distance as "yes".
+struct DistanceOfCandidate {
+  double operator()(const mm::Mesh&) const { return 0.01; }
+};
+struct AnswerForCandidate {
+  bool operator()(const mm::Mesh&) const { return true; }
+};
+static_assert(!std::is_convertible_v<DistanceOfCandidate, mm::CandidateCheck>);
+static_assert(std::is_convertible_v<AnswerForCandidate, mm::CandidateCheck>);
+
 TEST(Compress, VerifyHasTheLastWord) {
   MM_REQUIRE_SHARED_MESHES();
   auto m = mm::read_mesh(mm::test::shared_mesh("abc7.stl"));

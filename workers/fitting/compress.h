@@ -8,6 +8,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "fitting/fit_control_points.h"
@@ -16,6 +17,21 @@
 #include "meshio/normalize.h"
 
 namespace mm {
+
+// A yes/no question about a candidate control mesh. Only callables returning bool convert to
+// it: std::function<bool(...)> would also take one returning a distance, and read every
+// non-zero distance as "yes".
+class CandidateCheck {
+ public:
+  CandidateCheck() = default;
+  template <class F, class = std::enable_if_t<std::is_same_v<std::invoke_result_t<F&, const Mesh&>, bool>>>
+  CandidateCheck(F f) : f_(std::move(f)) {}
+  explicit operator bool() const { return static_cast<bool>(f_); }
+  bool operator()(const Mesh& control) const { return f_(control); }
+
+ private:
+  std::function<bool(const Mesh&)> f_;
+};
 
 struct CompressOptions {
   double tolerance = 0.005;     // target symmetric Hausdorff distance / bounding box diagonal
@@ -42,7 +58,7 @@ struct CompressOptions {
   // its vertices and can miss a narrow peak between them: blade 0.46 % by the fit, 0.53 % by the
   // quality code's dense samples). Only the answer counts (quality/surface_distance.h's
   // decoded_within gives it without the numbers).
-  std::function<bool(const Mesh& control)> verify;
+  CandidateCheck verify;
 };
 
 // A control polyhedron that met the tolerance, in the part's units, numbered for the stream.
