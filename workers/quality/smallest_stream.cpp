@@ -156,13 +156,18 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
   bool measured = false;  // out.distance is the written stream's
   // The chosen polyhedron's points: its own, or descended on the grid (grid_descent.h).
   std::optional<Mesh> descended;
-  const auto keep = [&out, &descended](std::vector<std::uint8_t>&& bytes, int bits, std::size_t k,
-                                       std::optional<Mesh>&& on_grid) {
+  // Keeps a stream that a check found within the tolerances, or, with `whole`, one measured
+  // whole (which then says whether it meets them).
+  const auto keep = [&](std::vector<std::uint8_t>&& bytes, int bits, std::size_t k, std::optional<Mesh>&& on_grid,
+                        const std::optional<SurfaceDistance>& whole = std::nullopt) {
     out.bytes = std::move(bytes);
     out.bits = bits;
     out.polyhedron = static_cast<int>(k);
     out.descended = on_grid.has_value();
     descended = std::move(on_grid);
+    out.meets = !whole || meets(*whole);
+    measured = whole.has_value();
+    if (whole) out.distance = *whole;
   };
   // Per polyhedron, whether it came within kCloseToTolerance of the tolerance at its
   // conservative bits (where checked).
@@ -183,18 +188,13 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
       // meets the tolerance later, so it is measured whole.
       if (!out.meets && b == bound && out.bytes.empty()) {
         const SurfaceDistance m = decoded_distance(measured_part, decoded, search.levels);
-        keep(std::move(candidate), b, k, std::nullopt);
-        out.distance = m;
-        out.meets = meets(m);
-        measured = true;
+        keep(std::move(candidate), b, k, std::nullopt, m);
         close_at_bound[k] = m.hausdorff_relative() <= kCloseToTolerance * search.tolerance;
         if (out.meets) break;
         if (!(m.hausdorff_relative() <= kDescentReach * search.tolerance)) continue;
       } else {
         if (met(decoded)) {
           keep(std::move(candidate), b, k, std::nullopt);
-          out.meets = true;
-          measured = false;
           break;
         }
         // Beyond the descent's reach (and kCloseToTolerance below it) a miss is all the search
@@ -210,8 +210,6 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
         if (out.meets && bytes.size() >= out.bytes.size()) break;
         if (met(decode(bytes, name).mesh)) {
           keep(std::move(bytes), b, k, std::move(on_grid));
-          out.meets = true;
-          measured = false;
           break;
         }
       }
@@ -231,8 +229,6 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
         auto candidate = encode(control, p);
         if (met(decode(candidate, name).mesh)) {
           keep(std::move(candidate), b, k, std::nullopt);
-          out.meets = true;
-          measured = false;
         }
       }
     }

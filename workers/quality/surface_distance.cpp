@@ -50,11 +50,9 @@ double diagonal_of(const Mesh& mesh) {
   return (mesh.points.colwise().maxCoeff() - mesh.points.colwise().minCoeff()).norm();
 }
 
-}  // namespace
-
-std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::uint64_t seed,
-                                            bool include_vertices) {
-  const std::vector<Tri> tris = triangles(mesh);
+// sample_surface on the mesh's triangles (triangles(mesh)), for a caller that has them already.
+std::vector<Eigen::Vector3d> sample_triangles(const std::vector<Tri>& tris, const Mesh& mesh, int samples,
+                                              std::uint64_t seed, bool include_vertices) {
   std::mt19937_64 rng(seed);
   std::vector<Eigen::Vector3d> out;
   const std::size_t count = static_cast<std::size_t>(std::max(samples, 0));
@@ -89,19 +87,25 @@ std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::
   return out;
 }
 
+}  // namespace
+
+std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::uint64_t seed,
+                                            bool include_vertices) {
+  return sample_triangles(triangles(mesh), mesh, samples, seed, include_vertices);
+}
+
 namespace {
 
-// The closest-point tree of a surface's triangles.
-std::unique_ptr<TriangleDistanceTree> tree_of(const Mesh& mesh) {
-  const std::vector<Tri> target = triangles(mesh);
+// The closest-point tree of a surface's triangles (triangles(mesh)).
+std::unique_ptr<TriangleDistanceTree> tree_of(const std::vector<Tri>& tris) {
   std::vector<std::array<Eigen::Vector3d, 3>> corners;
-  corners.reserve(target.size());
-  for (const Tri& t : target) corners.push_back({t.a, t.b, t.c});
+  corners.reserve(tris.size());
+  for (const Tri& t : tris) corners.push_back({t.a, t.b, t.c});
   return std::make_unique<TriangleDistanceTree>(corners);
 }
 
-std::vector<Eigen::Vector3d> samples_of(const Mesh& mesh, const SamplingParams& params) {
-  std::vector<Eigen::Vector3d> points = sample_surface(mesh, params.samples, params.seed, params.include_vertices);
+std::vector<Eigen::Vector3d> samples_of(const std::vector<Tri>& tris, const Mesh& mesh, const SamplingParams& params) {
+  std::vector<Eigen::Vector3d> points = sample_triangles(tris, mesh, params.samples, params.seed, params.include_vertices);
   if (points.empty()) throw InputError("quality", "no samples: give samples > 0 or include vertices");
   return points;
 }
@@ -220,8 +224,9 @@ std::vector<int> spatial_order(const std::vector<Eigen::Vector3d>& points) {
   return order;
 }
 
-// Strides of the passes of a measurement with a limit: a surface far off shows in the first.
-constexpr std::size_t kPasses[] = {64, 16, 4, 1};
+// Strides of the passes of a measurement with a limit (a surface far off shows in the first),
+// and of one without.
+const std::vector<std::size_t> kPasses{64, 16, 4, 1}, kWhole{1};
 
 }  // namespace
 
@@ -237,8 +242,9 @@ struct MeasuredSurface::Impl {
   mutable std::vector<int> order;  // spatial_order(samples)
   void build() const {
     std::call_once(built, [this] {
-      auto t = tree_of(mesh);
-      samples = samples_of(mesh, params);
+      const std::vector<Tri> tris = triangles(mesh);
+      auto t = tree_of(tris);
+      samples = samples_of(tris, mesh, params);
       order = spatial_order(samples);
       tree = std::move(t);
     });
@@ -274,9 +280,39 @@ const std::vector<int>& MeasuredSurface::sample_order() const {
   return impl_->order;
 }
 
+namespace {
+
+// A surface b against a measured part: both directions of a measurement, b's tree and samples
+// made from b's triangles (triangles(b), computed once by the caller; they are checked before
+// the part is built, as when the part's tree was built per measurement). in_passes runs the
+// part's side and b's side of each pass in turn, until one fails.
+struct Against {
+  Against(const MeasuredSurface& a, const Mesh& b, const std::vector<Tri>& b_tris)
+      : b_tree(tree_of(b_tris)),
+        ab(a.samples(), *b_tree, &a.sample_order()),
+        b_samples(samples_of(b_tris, b, other_direction(a.params()))),
+        ba(b_samples, a.tree()) {}
+  template <class Pass>
+  bool in_passes(const std::vector<std::size_t>& strides, Pass pass) {
+    std::size_t coarser = 0;
+    for (std::size_t stride : strides) {
+      if (!pass(ab, stride, coarser) || !pass(ba, stride, coarser)) return false;
+      coarser = stride;
+    }
+    return true;
+  }
+
+  std::unique_ptr<TriangleDistanceTree> b_tree;
+  Direction ab;  // the part's samples to b
+  std::vector<Eigen::Vector3d> b_samples;
+  Direction ba;  // b's samples to the part
+};
+
+}  // namespace
+
 OneSidedDistance one_sided_distance(const Mesh& from, const Mesh& to, const SamplingParams& params) {
-  const auto tree = tree_of(to);
-  const std::vector<Eigen::Vector3d> points = samples_of(from, params);
+  const auto tree = tree_of(triangles(to));
+  const std::vector<Eigen::Vector3d> points = samples_of(triangles(from), from, params);
   Direction d(points, *tree);
   d.measure(1, 0, std::numeric_limits<double>::infinity(), 1.0);
   return d.stats();
@@ -314,41 +350,24 @@ std::optional<SurfaceDistance> surface_distance_within(const Mesh& a, const Mesh
 }
 
 bool surface_within(const MeasuredSurface& measured, const Mesh& b, double limit) {
-  const double diagonal = measured.diagonal();
-  const auto b_tree = tree_of(b);
-  Direction ab(measured.samples(), *b_tree, &measured.sample_order());
-  const std::vector<Eigen::Vector3d> b_samples = samples_of(b, other_direction(measured.params()));
-  Direction ba(b_samples, measured.tree());
+  Against m(measured, b, triangles(b));
   if (std::isinf(limit)) return true;
-  std::size_t coarser = 0;
-  for (std::size_t stride : kPasses) {
-    if (!ab.within(stride, coarser, limit, diagonal) || !ba.within(stride, coarser, limit, diagonal)) return false;
-    coarser = stride;
-  }
-  return true;
+  return m.in_passes(kPasses, [&](Direction& d, std::size_t stride, std::size_t coarser) {
+    return d.within(stride, coarser, limit, measured.diagonal());
+  });
 }
 
 std::optional<SurfaceDistance> surface_distance_within(const MeasuredSurface& measured, const Mesh& b, double limit) {
   SurfaceDistance s;
   s.diagonal = measured.diagonal();
-  // b's triangles are checked first, as they were when a's tree was built per measurement.
-  const auto b_tree = tree_of(b);
-  Direction ab(measured.samples(), *b_tree, &measured.sample_order());
-  const std::vector<Eigen::Vector3d> b_samples = samples_of(b, other_direction(measured.params()));
-  Direction ba(b_samples, measured.tree());
-  if (std::isinf(limit)) {
-    ab.measure(1, 0, limit, s.diagonal);
-    ba.measure(1, 0, limit, s.diagonal);
-  } else {
-    std::size_t coarser = 0;
-    for (std::size_t stride : kPasses) {
-      if (!ab.measure(stride, coarser, limit, s.diagonal) || !ba.measure(stride, coarser, limit, s.diagonal))
-        return std::nullopt;
-      coarser = stride;
-    }
-  }
-  s.a_to_b = ab.stats();
-  s.b_to_a = ba.stats();
+  Against m(measured, b, triangles(b));
+  if (!m.in_passes(std::isinf(limit) ? kWhole : kPasses,
+                   [&](Direction& d, std::size_t stride, std::size_t coarser) {
+                     return d.measure(stride, coarser, limit, s.diagonal);
+                   }))
+    return std::nullopt;
+  s.a_to_b = m.ab.stats();
+  s.b_to_a = m.ba.stats();
   s.hausdorff = std::max(s.a_to_b.max, s.b_to_a.max);
   s.rms = std::max(s.a_to_b.rms, s.b_to_a.rms);
   s.mean = std::max(s.a_to_b.mean, s.b_to_a.mean);
