@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "quality/coordinate_slack.h"
+#include "quality/surface_distance.h"
 #include "subdivision/decompress.h"
 
 namespace {
@@ -68,6 +69,43 @@ TEST(CoordinateSlack, LocalErrorIsLocalAndTiltDividesTheSlack) {
   EXPECT_NEAR(slack[3 * far + 2], tol / l1, 1e-9);
   EXPECT_NEAR(slack[3 * far], tol / l1, 1e-9);
   EXPECT_GE(slack[3 * far + 1], 1e29);  // the tilt is about y: y still slides freely
+}
+
+// Asked only which slacks are at most c, it gives those exactly as the whole computation does and
+// the others as larger; from c = 0 (a repair's first question) to one where nothing is skipped.
+TEST(CoordinateSlack, SlacksUpToALimitAreExactAndTheOthersLarger) {
+  mm::Mesh control = flat_grid(9);
+  for (int v = 0; v < control.num_vertices(); ++v) control.points(v, 2) = 0.5 * control.points(v, 0);
+  mm::Mesh part = mm::decompress_to_level(control, 3);
+  // A smooth bump whose height goes from 0.06 (beyond the tolerance) to nothing.
+  const Eigen::RowVector3d normal = Eigen::RowVector3d(-0.5, 0, 1).normalized();
+  for (int r = 0; r < part.num_vertices(); ++r) {
+    const double dx = part.points(r, 0) - 3, dy = part.points(r, 1) - 4;
+    part.points.row(r) += 0.06 * std::exp(-(dx * dx + dy * dy) / 4) * normal;
+  }
+  const double tol = 0.05;
+  mm::SamplingParams params;
+  params.samples = 20000;
+  const mm::MeasuredSurface measured(part, params);
+  const auto all = mm::coordinate_slack(measured, control, 2, tol, params);
+  for (double c : {0.0, 0.002, 0.01, 0.02}) {
+    const auto some = mm::coordinate_slack(measured, control, 2, tol, params, c);
+    ASSERT_EQ(some.size(), all.size());
+    int exact = 0, skipped = 0;
+    for (std::size_t i = 0; i < all.size(); ++i) {
+      if (all[i] <= c) {
+        EXPECT_EQ(some[i], all[i]) << "c " << c << " coordinate " << i;
+        ++exact;
+      } else {
+        EXPECT_GT(some[i], c) << "c " << c << " coordinate " << i;
+        skipped += some[i] != all[i];
+      }
+    }
+    EXPECT_GT(exact, 0) << c;
+    if (tol - 3 * c > 0) {
+      EXPECT_GT(skipped, 0) << c;  // near samples were not measured
+    }
+  }
 }
 
 TEST(CoordinateSlack, PartWithoutAreaIsRefused) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 #include "quality/triangle_distance_tree.h"
 #include "subdivision/subdivide.h"
@@ -29,27 +30,34 @@ void fan(const Mesh& m, std::vector<Triangle>& tris, std::vector<std::array<int,
     }
 }
 
-constexpr double kUnlimited = 1e30, kTangent = 1e-3;
+constexpr double kUnlimited = 1e30, kTangent = 1e-3, kAll = std::numeric_limits<double>::infinity();
 
 }  // namespace
 
 std::vector<double> coordinate_slack(const Mesh& part, const Mesh& control, int levels, double tolerance,
                                      const SamplingParams& params) {
-  return coordinate_slack(MeasuredSurface(part, params), control, levels, tolerance, params);
+  return coordinate_slack(MeasuredSurface(part, params), control, levels, tolerance, params, kAll);
 }
 
 std::vector<double> coordinate_slack(const MeasuredSurface& part, const Mesh& control, int levels, double tolerance,
-                                     const SamplingParams& params) {
+                                     const SamplingParams& params, double exact_up_to) {
   const SubdivisionOperator op = build_subdivision(control, levels);
   Mesh refined = op.refined;
   refined.points = apply_subdivision(op, control.points);
   const int nr = refined.num_vertices();
 
+  // A slack of at most exact_up_to needs an error of at least `relevant` (the normals' weights sum
+  // to at most 3), so nearer distances are left at 0 once a triangle is certainly within it.
+  const double relevant = std::isfinite(exact_up_to) ? tolerance - 3 * exact_up_to : 0;
+  const auto distance = [relevant](const TriangleDistanceTree& tree, const Eigen::Vector3d& p, int& hint) {
+    if (relevant > 0 && tree.within(p, relevant, hint)) return -1.0;
+    return std::sqrt(tree.squared_distance(p, hint));
+  };
   // Refined vertices come in mesh order, so each query starts from the previous answer.
   const TriangleDistanceTree& part_tree = part.tree();
   std::vector<double> e(static_cast<std::size_t>(nr));
   int hint = -1;
-  for (int r = 0; r < nr; ++r) e[r] = std::sqrt(part_tree.squared_distance(refined.points.row(r).transpose(), hint));
+  for (int r = 0; r < nr; ++r) e[r] = std::max(0.0, distance(part_tree, refined.points.row(r).transpose(), hint));
 
   std::vector<Triangle> tris;
   std::vector<std::array<int, 3>> corners;
@@ -70,17 +78,21 @@ std::vector<double> coordinate_slack(const MeasuredSurface& part, const Mesh& co
     refined_corners.push_back({refined.points.row(c[0]).transpose(), refined.points.row(c[1]).transpose(),
                                refined.points.row(c[2]).transpose()});
   const TriangleDistanceTree tree(refined_corners);
-  int at = -1;  // samples come in the part's face order: each query starts from the previous answer
+  int at = -1;  // each query starts from the previous answer
   const auto& own = part.params();
   const bool same = own.samples == params.samples && own.seed == params.seed &&
                     own.include_vertices == params.include_vertices;
   const std::vector<Eigen::Vector3d> other =
       same ? std::vector<Eigen::Vector3d>{}
            : sample_surface(part.mesh(), params.samples, params.seed, params.include_vertices);
-  for (const auto& p : same ? part.samples() : other) {
-    const double d = std::sqrt(tree.squared_distance(p, at));
-    for (int r : corners[static_cast<std::size_t>(tree.triangle_of(at))]) e[r] = std::max(e[r], d);
-  }
+  const auto charge = [&](const Eigen::Vector3d& p) {
+    const double d = distance(tree, p, at);
+    if (d >= 0)
+      for (int r : corners[static_cast<std::size_t>(tree.triangle_of(at))]) e[r] = std::max(e[r], d);
+  };
+  // The samples along a curve through space (MeasuredSurface::sample_order for the part's own).
+  const std::vector<Eigen::Vector3d>& points = same ? part.samples() : other;
+  for (int i : same ? part.sample_order() : spatial_order(other)) charge(points[static_cast<std::size_t>(i)]);
 
   std::vector<double> out(3 * static_cast<std::size_t>(control.num_vertices()), kUnlimited);
   for (int r = 0; r < op.S.outerSize(); ++r) {

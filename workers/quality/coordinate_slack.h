@@ -5,6 +5,7 @@
 // surface does not depend on there (a vertex inside a flat face region moves along the face for
 // free), and leaves alone the coordinates whose surface already uses the tolerance up.
 #pragma once
+#include <limits>
 #include <vector>
 
 #include "meshio/mesh.h"
@@ -28,8 +29,14 @@ namespace mm {
 std::vector<double> coordinate_slack(const Mesh& part, const Mesh& control, int levels, double tolerance,
                                      const SamplingParams& params = {});
 // The same against a part measured once (quality/surface_distance.h): its tree, and its samples
-// where `params` are its own.
+// where `params` are its own. A caller that only asks which slacks are at most `exact_up_to` gets
+// those as above and the others only as larger: a refined vertex or sample certainly nearer the
+// part than tolerance - 3 exact_up_to (TriangleDistanceTree::within) cannot set such a slack and
+// is not measured (a repair of a snapped stream asks about slack 0 or a quarter of a grid step:
+// most of the 200,000 samples then cost a tolerance check's query instead of a closest point).
+// Of equally close triangles a sample may be charged to another than without it.
 std::vector<double> coordinate_slack(const MeasuredSurface& part, const Mesh& control, int levels, double tolerance,
-                                     const SamplingParams& params = {});
+                                     const SamplingParams& params = {},
+                                     double exact_up_to = std::numeric_limits<double>::infinity());
 
 }  // namespace mm

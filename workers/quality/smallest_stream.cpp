@@ -74,11 +74,13 @@ std::vector<std::uint8_t> snap_search(const MeasuredSurface& part, const Mesh& c
       if (repair == kSnapRepairs) break;
       // The codec keeps the vertex order, so the plain and snapped grids line up row by row.
       // The second repair also takes back moves with under a quarter cell of slack left.
-      const std::vector<double> left = coordinate_slack(part, snapped.mesh, levels, tolerance, part.params());
+      const double reverted_up_to = 0.25 * repair * step;
+      const std::vector<double> left =
+          coordinate_slack(part, snapped.mesh, levels, tolerance, part.params(), reverted_up_to);
       int reverted = 0;
       for (std::size_t i = 0; i < left.size(); ++i) {
         const int v = static_cast<int>(i / 3), axis = static_cast<int>(i % 3);
-        if (left[i] <= 0.25 * repair * step && snapped.grid(v, axis) != plain.grid(v, axis)) {
+        if (left[i] <= reverted_up_to && snapped.grid(v, axis) != plain.grid(v, axis)) {
           snapped.grid(v, axis) = plain.grid(v, axis);
           ++reverted;
         }

@@ -94,6 +94,39 @@ std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::
   return sample_triangles(triangles(mesh), mesh, samples, seed, include_vertices);
 }
 
+// The samples along a Morton (Z-order) curve through their bounding box, ties by index: neighbours
+// on the curve lie near each other, so each query starts near its answer. Area samples come
+// triangle by triangle, but within a large triangle they lie anywhere (abc7's part: 14 % of the
+// tolerance checks were answered by the previous sample's triangle in index order).
+std::vector<int> spatial_order(const std::vector<Eigen::Vector3d>& points) {
+  Eigen::AlignedBox3d box;
+  for (const auto& p : points) box.extend(p);
+  const Eigen::Vector3d lo = box.min(), size = box.sizes().cwiseMax(std::numeric_limits<double>::min());
+  // 21 bits per axis, interleaved.
+  const auto spread = [](std::uint64_t x) {
+    x &= 0x1fffff;
+    x = (x | x << 32) & 0x1f00000000ffffull;
+    x = (x | x << 16) & 0x1f0000ff0000ffull;
+    x = (x | x << 8) & 0x100f00f00f00f00full;
+    x = (x | x << 4) & 0x10c30c30c30c30c3ull;
+    x = (x | x << 2) & 0x1249249249249249ull;
+    return x;
+  };
+  std::vector<std::pair<std::uint64_t, int>> keyed(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    std::uint64_t code = 0;
+    for (int k = 0; k < 3; ++k) {
+      const double t = std::clamp((points[i][k] - lo[k]) / size[k], 0.0, 1.0);
+      code |= spread(static_cast<std::uint64_t>(t * 2097151.0)) << k;
+    }
+    keyed[i] = {code, static_cast<int>(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<int> order(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) order[i] = keyed[i].second;
+  return order;
+}
+
 namespace {
 
 // The closest-point tree of a surface's triangles (triangles(mesh)).
@@ -190,39 +223,6 @@ class Direction {
   std::vector<double> squared_;  // sized by the first measure()
   int hint_ = -1;
 };
-
-// The samples along a Morton (Z-order) curve through their bounding box, ties by index: neighbours
-// on the curve lie near each other, so each query starts near its answer. Area samples come
-// triangle by triangle, but within a large triangle they lie anywhere (abc7's part: 14 % of the
-// tolerance checks were answered by the previous sample's triangle in index order).
-std::vector<int> spatial_order(const std::vector<Eigen::Vector3d>& points) {
-  Eigen::AlignedBox3d box;
-  for (const auto& p : points) box.extend(p);
-  const Eigen::Vector3d lo = box.min(), size = box.sizes().cwiseMax(std::numeric_limits<double>::min());
-  // 21 bits per axis, interleaved.
-  const auto spread = [](std::uint64_t x) {
-    x &= 0x1fffff;
-    x = (x | x << 32) & 0x1f00000000ffffull;
-    x = (x | x << 16) & 0x1f0000ff0000ffull;
-    x = (x | x << 8) & 0x100f00f00f00f00full;
-    x = (x | x << 4) & 0x10c30c30c30c30c3ull;
-    x = (x | x << 2) & 0x1249249249249249ull;
-    return x;
-  };
-  std::vector<std::pair<std::uint64_t, int>> keyed(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    std::uint64_t code = 0;
-    for (int k = 0; k < 3; ++k) {
-      const double t = std::clamp((points[i][k] - lo[k]) / size[k], 0.0, 1.0);
-      code |= spread(static_cast<std::uint64_t>(t * 2097151.0)) << k;
-    }
-    keyed[i] = {code, static_cast<int>(i)};
-  }
-  std::sort(keyed.begin(), keyed.end());
-  std::vector<int> order(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) order[i] = keyed[i].second;
-  return order;
-}
 
 // Strides of the passes of a measurement with a limit (a surface far off shows in the first),
 // and of one without.

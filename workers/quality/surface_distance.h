@@ -43,6 +43,10 @@ struct SurfaceDistance {
 std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::uint64_t seed,
                                             bool include_vertices);
 
+// The points' indices along a Morton (Z-order) curve through their bounding box, ties by index:
+// queried in this order, each closest-point query starts near its answer (the previous one's).
+std::vector<int> spatial_order(const std::vector<Eigen::Vector3d>& points);
+
 // One surface's side of repeated measurements against it (the part, in a compress run that
 // measures a dozen candidate surfaces against it): its samples and its closest-point tree, built
 // once (on fandisk about a sixth of a measurement), so a measurement builds only the other
