@@ -119,6 +119,35 @@ TEST(TriangleDistanceTree, CgalNumbersOnASubdividedSurface) {
   expect_cgal_numbers(part, quads, 20000);
 }
 
+// A query whose closest point is a corner several triangles share, as their first corner, ties
+// exactly: the answer names the first of them in the constructor's list, wherever the search
+// starts (coordinate_slack charges a sample's error to that triangle's corners, and queries its
+// samples in any order).
+TEST(TriangleDistanceTree, EquallyCloseTrianglesGiveTheFirstInTheList) {
+  using V = Eigen::Vector3d;
+  std::vector<std::array<V, 3>> tris;
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(2.0, 9.0);
+  // Far triangles around, so the tied ones fall into different leaves.
+  for (int k = 0; k < 60; ++k) {
+    const V a(u(rng), u(rng), u(rng));
+    tris.push_back({a, V(a + V(0.5, 0, 0)), V(a + V(0, 0.5, 0))});
+  }
+  // Three triangles with the origin as their first corner, in the positive octant.
+  const std::vector<std::size_t> tied{41, 7, 23};
+  const V ex(1, 0, 0), ey(0, 1, 0), ez(0, 0, 1), o(0, 0, 0);
+  tris[tied[0]] = {o, ex, ey};
+  tris[tied[1]] = {o, ey, ez};
+  tris[tied[2]] = {o, ez, ex};
+  const mm::TriangleDistanceTree tree(tris);
+  const V q(-1, -1, -1);  // nearest to the origin, at squared distance 3 from all three
+  for (int start = -1; start < static_cast<int>(tris.size()); ++start) {
+    int hint = start;
+    EXPECT_EQ(tree.squared_distance(q, hint), 3.0) << start;
+    EXPECT_EQ(tree.triangle_of(hint), 7) << "search started at position " << start;
+  }
+}
+
 TEST(TriangleDistanceTree, RejectsNoTriangles) {
   EXPECT_THROW(mm::TriangleDistanceTree({}), std::invalid_argument);
 }

@@ -70,8 +70,8 @@ std::vector<double> coordinate_slack(const MeasuredSurface& part, const Mesh& co
     for (int r : corners[t])
       for (int a = 0; a < 3; ++a) m[r][a] = std::max(m[r][a], std::abs(n[a]) / len);
   }
-  // The quality code's tree again (CGAL's distances; of equally close triangles it may name
-  // another than CGAL's AABB tree did, which only moves an error between neighbours' corners).
+  // The quality code's tree again (CGAL's distances). Of equally close triangles it names the
+  // first in fan order, whatever order the samples are queried in and whichever were skipped.
   std::vector<std::array<Eigen::Vector3d, 3>> refined_corners;
   refined_corners.reserve(corners.size());
   for (const auto& c : corners)

@@ -34,7 +34,6 @@ std::vector<double> coordinate_slack(const Mesh& part, const Mesh& control, int 
 // part than tolerance - 3 exact_up_to (TriangleDistanceTree::within) cannot set such a slack and
 // is not measured (a repair of a snapped stream asks about slack 0 or a quarter of a grid step:
 // most of the 200,000 samples then cost a tolerance check's query instead of a closest point).
-// Of equally close triangles a sample may be charged to another than without it.
 std::vector<double> coordinate_slack(const MeasuredSurface& part, const Mesh& control, int levels, double tolerance,
                                      const SamplingParams& params = {},
                                      double exact_up_to = std::numeric_limits<double>::infinity());

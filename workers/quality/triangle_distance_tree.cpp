@@ -197,7 +197,10 @@ double TriangleDistanceTree::squared_distance(const Eigen::Vector3d& q, int& hin
     const double v0 = sqd(query, s.t.vertex(0));
     const double x = sqd(query, project(s.t, query));
     const double v = std::min(v0, x);
-    if (v < best2) best2 = v, best = t;
+    // Of equally close triangles the first in the constructor's list, wherever the search
+    // started: none is skipped (the skip tests allow the slack), so the answer is canonical.
+    if (v < best2 || (v == best2 && best >= 0 && im.index[static_cast<size_t>(t)] < im.index[static_cast<size_t>(best)]))
+      best2 = v, best = t;
   };
   // Skip bound: a triangle or box farther than sqrt(best2) + eps cannot hold a closer answer.
   auto bound = [&] {

@@ -34,7 +34,7 @@ class TriangleDistanceTree {
   // within r afterwards, not necessarily the closest).
   bool within(const Eigen::Vector3d& q, double r, int& hint) const;
   // The index (in the constructor's list) of the triangle a query's `hint` names afterwards: the
-  // closest one (of equally close ones, the first the search met).
+  // closest one (of equally close ones, the first in the constructor's list, whatever the hint).
   int triangle_of(int hint) const;
   struct Impl;
 
