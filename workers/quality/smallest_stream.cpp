@@ -99,9 +99,14 @@ std::vector<std::uint8_t> snap_search(const MeasuredSurface& part, const Mesh& c
 // traversal, and with it the ranks and predictions, follow the start, and over 64 starts the
 // smallest stream is 1-3 % below the first (blade 1177 -> 1156 bytes, abc6 207 -> 203). The
 // surface is the same, but the samples a measurement takes of it follow its numbering, so a
-// smaller stream is checked again. Returns no bytes when no start codes smaller.
+// smaller stream is checked again. Returns no bytes when no start codes smaller. `met` answers
+// the check; the caller's last renumbering, whose stream is written when it meets the
+// tolerances, passes `measure` instead: the whole measurement stopped early beyond the
+// tolerance, which answers the same and gives the numbers the caller reports.
 std::vector<std::uint8_t> cheapest_numbering(const std::vector<std::uint8_t>& stream, int bits, CodecParams params,
-                                             const std::function<bool(const Mesh&)>& met, const std::string& name) {
+                                             const std::function<bool(const Mesh&)>& met, const std::string& name,
+                                             const std::function<std::optional<SurfaceDistance>(const Mesh&)>* measure,
+                                             std::optional<SurfaceDistance>& measured) {
   const DecodedStream written = decode(stream, name);
   params.quant_bits = bits;
   const int n = written.mesh.num_vertices(), starts = std::min(n, kStarts);
@@ -110,7 +115,14 @@ std::vector<std::uint8_t> cheapest_numbering(const std::vector<std::uint8_t>& st
     auto bytes = encode(in_traversal_order(written.mesh, static_cast<int>(static_cast<long long>(k) * n / starts)), params);
     if (bytes.size() < (best.empty() ? stream.size() : best.size())) best = std::move(bytes);
   }
-  if (best.empty() || !met(decode(best, name).mesh)) return {};
+  if (best.empty()) return {};
+  const Mesh decoded = decode(best, name).mesh;
+  if (measure) {
+    measured = (*measure)(decoded);
+    if (!measured) return {};
+  } else if (!met(decoded)) {
+    return {};
+  }
   return best;
 }
 
@@ -151,6 +163,13 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
     if (search.rms_tolerance <= 0) return within(decoded, 1.0);
     const auto d = decoded_distance_within(measured_part, decoded, search.levels, search.tolerance);
     return d && meets(*d);
+  };
+  // The same answer with the numbers (nothing when it misses): for a stream that is written if
+  // it meets the tolerances, whose whole measurement is then not repeated.
+  const std::function<std::optional<SurfaceDistance>(const Mesh&)> measure_met = [&](const Mesh& decoded) {
+    auto d = decoded_distance_within(measured_part, decoded, search.levels, search.tolerance);
+    if (d && !meets(*d)) d.reset();
+    return d;
   };
   CodecParams params;
   params.metadata = search.metadata;
@@ -238,13 +257,20 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
   // The cheapest numbering of the chosen stream; then snapping on the chosen polyhedron, at its
   // bits and one more: each snapped stream is decoded and checked like the plain ones, and the
   // smallest that meets the tolerances wins (the plain one included), numbered cheapest too.
-  const auto renumber = [&]() {
-    std::vector<std::uint8_t> c = cheapest_numbering(out.bytes, out.bits, params, met, name);
-    if (!c.empty()) out.bytes = std::move(c);
+  // `last`: nothing can replace the renumbered stream, so it is measured whole.
+  const auto renumber = [&](bool last) {
+    std::optional<SurfaceDistance> whole;
+    std::vector<std::uint8_t> c =
+        cheapest_numbering(out.bytes, out.bits, params, met, name, last ? &measure_met : nullptr, whole);
+    if (c.empty()) return;
+    out.bytes = std::move(c);
+    measured = whole.has_value();
+    if (whole) out.distance = *whole;
   };
-  if (search.bits == 0 && out.meets) renumber();
+  const bool snapping = search.snap && search.bits == 0 && out.meets;
+  if (search.bits == 0 && out.meets) renumber(!snapping);
   out.unsnapped_bytes = out.bytes.size();
-  if (search.snap && search.bits == 0 && out.meets) {
+  if (snapping) {
     const Mesh& control = descended ? *descended : *polyhedra[static_cast<std::size_t>(out.polyhedron)];
     const int top = std::min(out.bits + 1, conservative_bits(control, search.tolerance));
     const double tolerance = search.tolerance * measured_part.diagonal();
@@ -257,7 +283,10 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
       out.bits = bits;
       out.snapped = true;
     }
-    if (out.snapped) renumber();
+    if (out.snapped) {
+      measured = false;  // out.distance, if any, is the plain stream's
+      renumber(true);
+    }
   }
   // The numbers reported are the written stream's, measured as `meshmark compare` measures it.
   if (!measured) out.distance = decoded_distance(measured_part, decode(out.bytes, name).mesh, search.levels);
