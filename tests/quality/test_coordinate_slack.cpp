@@ -19,6 +19,17 @@ mm::Mesh flat_grid(int n) {
   return m;
 }
 
+// flat_grid(9) tilted about y (z = x / 2), and its surface at `level` with each vertex lifted
+// along the tilted normal by lift(x, y).
+template <class Lift>
+void tilted_grid(int level, Lift lift, mm::Mesh& control, mm::Mesh& part) {
+  control = flat_grid(9);
+  for (int v = 0; v < control.num_vertices(); ++v) control.points(v, 2) = 0.5 * control.points(v, 0);
+  part = mm::decompress_to_level(control, level);
+  const Eigen::RowVector3d normal = Eigen::RowVector3d(-0.5, 0, 1).normalized();
+  for (int r = 0; r < part.num_vertices(); ++r) part.points.row(r) += lift(part.points(r, 0), part.points(r, 1)) * normal;
+}
+
 }  // namespace
 
 // Against its own surface, a flat grid may slide freely in its plane (no refined vertex depends
@@ -52,15 +63,10 @@ TEST(CoordinateSlack, ErrorUsesUpTheSlack) {
 // lose their slack, far ones keep it. A tilted grid: every axis then has a normal component,
 // which divides the slack by |n_x| + |n_y| + |n_z|.
 TEST(CoordinateSlack, LocalErrorIsLocalAndTiltDividesTheSlack) {
-  mm::Mesh control = flat_grid(9);
-  for (int v = 0; v < control.num_vertices(); ++v) control.points(v, 2) = 0.5 * control.points(v, 0);
-  mm::Mesh part = mm::decompress_to_level(control, 2);
-  // Lift the part's vertices near control vertex (1, 1) along the normal.
-  const Eigen::RowVector3d normal = Eigen::RowVector3d(-0.5, 0, 1).normalized();
-  for (int r = 0; r < part.num_vertices(); ++r) {
-    const double dx = part.points(r, 0) - 1, dy = part.points(r, 1) - 1;
-    if (dx * dx + dy * dy < 0.25) part.points.row(r) += 0.02 * normal;
-  }
+  // The part's vertices near control vertex (1, 1) lifted along the normal.
+  mm::Mesh control, part;
+  tilted_grid(2, [](double x, double y) { return (x - 1) * (x - 1) + (y - 1) * (y - 1) < 0.25 ? 0.02 : 0.0; },
+              control, part);
   const double tol = 0.05;
   const auto slack = mm::coordinate_slack(part, control, 2, tol);
   const double l1 = (0.5 + 1) / std::sqrt(1.25);
@@ -74,15 +80,10 @@ TEST(CoordinateSlack, LocalErrorIsLocalAndTiltDividesTheSlack) {
 // Asked only which slacks are at most c, it gives those exactly as the whole computation does and
 // the others as larger; from c = 0 (a repair's first question) to one where nothing is skipped.
 TEST(CoordinateSlack, SlacksUpToALimitAreExactAndTheOthersLarger) {
-  mm::Mesh control = flat_grid(9);
-  for (int v = 0; v < control.num_vertices(); ++v) control.points(v, 2) = 0.5 * control.points(v, 0);
-  mm::Mesh part = mm::decompress_to_level(control, 3);
   // A smooth bump whose height goes from 0.06 (beyond the tolerance) to nothing.
-  const Eigen::RowVector3d normal = Eigen::RowVector3d(-0.5, 0, 1).normalized();
-  for (int r = 0; r < part.num_vertices(); ++r) {
-    const double dx = part.points(r, 0) - 3, dy = part.points(r, 1) - 4;
-    part.points.row(r) += 0.06 * std::exp(-(dx * dx + dy * dy) / 4) * normal;
-  }
+  mm::Mesh control, part;
+  tilted_grid(3, [](double x, double y) { return 0.06 * std::exp(-((x - 3) * (x - 3) + (y - 4) * (y - 4)) / 4); },
+              control, part);
   const double tol = 0.05;
   mm::SamplingParams params;
   params.samples = 20000;
