@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <limits>
 
 #include "quality/triangle_distance_tree.h"
 #include "subdivision/subdivide.h"
@@ -30,13 +29,13 @@ void fan(const Mesh& m, std::vector<Triangle>& tris, std::vector<std::array<int,
     }
 }
 
-constexpr double kUnlimited = 1e30, kTangent = 1e-3, kAll = std::numeric_limits<double>::infinity();
+constexpr double kUnlimited = 1e30, kTangent = 1e-3;
 
 }  // namespace
 
 std::vector<double> coordinate_slack(const Mesh& part, const Mesh& control, int levels, double tolerance,
                                      const SamplingParams& params) {
-  return coordinate_slack(MeasuredSurface(part, params), control, levels, tolerance, params, kAll);
+  return coordinate_slack(MeasuredSurface(part, params), control, levels, tolerance, params);
 }
 
 std::vector<double> coordinate_slack(const MeasuredSurface& part, const Mesh& control, int levels, double tolerance,

@@ -98,15 +98,10 @@ std::vector<std::uint8_t> snap_search(const MeasuredSurface& part, const Mesh& c
 // The stream's grid values numbered from other start vertices (in_traversal_order): the
 // traversal, and with it the ranks and predictions, follow the start, and over 64 starts the
 // smallest stream is 1-3 % below the first (blade 1177 -> 1156 bytes, abc6 207 -> 203). The
-// surface is the same, but the samples a measurement takes of it follow its numbering, so a
-// smaller stream is checked again. Returns no bytes when no start codes smaller. `met` answers
-// the check; the caller's last renumbering, whose stream is written when it meets the
-// tolerances, passes `measure` instead: the whole measurement stopped early beyond the
-// tolerance, which answers the same and gives the numbers the caller reports.
+// surface is the same, but the samples a measurement takes of it follow its numbering, so the
+// caller checks a smaller stream again. Returns no bytes when no start codes smaller.
 std::vector<std::uint8_t> cheapest_numbering(const std::vector<std::uint8_t>& stream, int bits, CodecParams params,
-                                             const std::function<bool(const Mesh&)>& met, const std::string& name,
-                                             const std::function<std::optional<SurfaceDistance>(const Mesh&)>* measure,
-                                             std::optional<SurfaceDistance>& measured) {
+                                             const std::string& name) {
   const DecodedStream written = decode(stream, name);
   params.quant_bits = bits;
   const int n = written.mesh.num_vertices(), starts = std::min(n, kStarts);
@@ -114,14 +109,6 @@ std::vector<std::uint8_t> cheapest_numbering(const std::vector<std::uint8_t>& st
   for (int k = 1; k < starts; ++k) {
     auto bytes = encode(in_traversal_order(written.mesh, static_cast<int>(static_cast<long long>(k) * n / starts)), params);
     if (bytes.size() < (best.empty() ? stream.size() : best.size())) best = std::move(bytes);
-  }
-  if (best.empty()) return {};
-  const Mesh decoded = decode(best, name).mesh;
-  if (measure) {
-    measured = (*measure)(decoded);
-    if (!measured) return {};
-  } else if (!met(decoded)) {
-    return {};
   }
   return best;
 }
@@ -157,19 +144,18 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
   const auto within = [&measured_part, &search](const Mesh& decoded, double factor) {
     return decoded_within(measured_part, decoded, search.levels, factor * search.tolerance);
   };
-  // Whether it meets the tolerances: an RMS bound needs every sample's distance, so then the
-  // whole measurement (stopped early beyond the Hausdorff tolerance) decides.
-  const std::function<bool(const Mesh&)> met = [&](const Mesh& decoded) {
-    if (search.rms_tolerance <= 0) return within(decoded, 1.0);
-    const auto d = decoded_distance_within(measured_part, decoded, search.levels, search.tolerance);
-    return d && meets(*d);
-  };
-  // The same answer with the numbers (nothing when it misses): for a stream that is written if
-  // it meets the tolerances, whose whole measurement is then not repeated.
-  const std::function<std::optional<SurfaceDistance>(const Mesh&)> measure_met = [&](const Mesh& decoded) {
+  // The whole measurement (stopped early beyond the Hausdorff tolerance) when the stream meets
+  // the tolerances, else nothing: for a stream that is written if it meets them, whose numbers
+  // are then not measured again.
+  const auto measured_if_met = [&](const Mesh& decoded) {
     auto d = decoded_distance_within(measured_part, decoded, search.levels, search.tolerance);
     if (d && !meets(*d)) d.reset();
     return d;
+  };
+  // Whether it meets the tolerances: an RMS bound needs every sample's distance, so then the
+  // whole measurement decides.
+  const std::function<bool(const Mesh&)> met = [&](const Mesh& decoded) {
+    return search.rms_tolerance <= 0 ? within(decoded, 1.0) : measured_if_met(decoded).has_value();
   };
   CodecParams params;
   params.metadata = search.metadata;
@@ -257,12 +243,19 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
   // The cheapest numbering of the chosen stream; then snapping on the chosen polyhedron, at its
   // bits and one more: each snapped stream is decoded and checked like the plain ones, and the
   // smallest that meets the tolerances wins (the plain one included), numbered cheapest too.
-  // `last`: nothing can replace the renumbered stream, so it is measured whole.
+  // A smaller numbering is checked; the `last` one, which nothing can replace, is measured whole
+  // instead (the same answer, and the numbers reported).
   const auto renumber = [&](bool last) {
-    std::optional<SurfaceDistance> whole;
-    std::vector<std::uint8_t> c =
-        cheapest_numbering(out.bytes, out.bits, params, met, name, last ? &measure_met : nullptr, whole);
+    std::vector<std::uint8_t> c = cheapest_numbering(out.bytes, out.bits, params, name);
     if (c.empty()) return;
+    const Mesh decoded = decode(c, name).mesh;
+    std::optional<SurfaceDistance> whole;
+    if (last) {
+      whole = measured_if_met(decoded);
+      if (!whole) return;
+    } else if (!met(decoded)) {
+      return;
+    }
     out.bytes = std::move(c);
     measured = whole.has_value();
     if (whole) out.distance = *whole;
@@ -282,11 +275,9 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
       out.bytes = std::move(s);
       out.bits = bits;
       out.snapped = true;
-    }
-    if (out.snapped) {
       measured = false;  // out.distance, if any, is the plain stream's
-      renumber(true);
     }
+    if (out.snapped) renumber(true);
   }
   // The numbers reported are the written stream's, measured as `meshmark compare` measures it.
   if (!measured) out.distance = decoded_distance(measured_part, decode(out.bytes, name).mesh, search.levels);
