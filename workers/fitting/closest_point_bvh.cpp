@@ -19,15 +19,17 @@ constexpr int kLeafSize = 4;
 
 double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
-// A triangle as the search reads it, in leaf order.
-struct TriSlot {
+// A triangle as the search reads it, in leaf order; fields in the order the search reads them,
+// aligned: most triangles visited are turned away by their box, which then costs one cache line
+// (the search waits on memory more than on arithmetic).
+struct alignas(32) TriSlot {
   static constexpr int kVertices = 3;
-  double v[3][3];
-  double n[3], d;  // unit normal and offset (n . x = d) of the supporting plane
   double lo[3], hi[3];  // bounding box
   int id;          // the caller's index
   bool regular;    // non-zero area
   bool prunable;   // plane accurate enough to skip on (not a sliver)
+  double n[3], d;  // unit normal and offset (n . x = d) of the supporting plane
+  double v[3][3];
 
   void fill(const Points& points, const std::array<int, 3>& f) {
     for (int j = 0; j < 3; ++j)
@@ -144,16 +146,16 @@ class Tree {
     const BvhLayout layout = binned_sah_layout(centroid, box, kLeafSize);
     const std::vector<int>& order = layout.order;
     nodes_.resize(layout.nodes.size());
+    search_.resize(layout.nodes.size());
     for (size_t i = 0; i < nodes_.size(); ++i) {
-      nodes_[i].first = layout.nodes[i].first;
-      nodes_[i].count = layout.nodes[i].count;
+      nodes_[i].first = search_[i].first = layout.nodes[i].first;
+      nodes_[i].count = search_[i].count = layout.nodes[i].count;
     }
     slots_.resize(static_cast<size_t>(n));
     for (int k = 0; k < n; ++k) {
       slots_[static_cast<size_t>(k)].id = order[static_cast<size_t>(k)];
       slot_of_[static_cast<size_t>(order[static_cast<size_t>(k)])] = k;
     }
-    child_boxes_.resize(nodes_.size());
     refit(points);
   }
 
@@ -183,7 +185,7 @@ class Tree {
       } else {
         const Node& l = nodes_[i + 1];
         const Node& r = nodes_[static_cast<size_t>(nd.first)];
-        BvhChildBoxes& cb = child_boxes_[i];
+        BvhChildBoxes& cb = search_[i].children;
         for (int k = 0; k < 3; ++k) {
           nd.lo[k] = std::min(l.lo[k], r.lo[k]);
           nd.hi[k] = std::max(l.hi[k], r.hi[k]);
@@ -216,7 +218,7 @@ class Tree {
     while (top > 0) {
       const Entry e = stack[--top];
       if (e.d2 >= best2) continue;
-      const Node& nd = nodes_[static_cast<size_t>(e.node)];
+      const SearchNode& nd = search_[static_cast<size_t>(e.node)];
       if (nd.count > 0) {
         for (int j = nd.first; j < nd.first + nd.count; ++j)
           if (slots_[static_cast<size_t>(j)].project(p, best2, x, weights)) best = j;
@@ -224,7 +226,10 @@ class Tree {
       }
       const int l = e.node + 1, r = nd.first;
       double dl, dr;
-      child_box_distances(child_boxes_[static_cast<size_t>(e.node)], p, dl, dr);
+      child_box_distances(nd.children, p, dl, dr);
+      // The far child is usually popped later; fetching both now overlaps their misses.
+      if (dr < best2) __builtin_prefetch(&search_[static_cast<size_t>(r)]);
+      if (dl < best2) __builtin_prefetch(&search_[static_cast<size_t>(l)]);
       if (dl <= dr) {
         if (dr < best2) stack[top++] = {r, dr};
         if (dl < best2) stack[top++] = {l, dl};
@@ -244,6 +249,11 @@ class Tree {
     int first;  // leaf: first slot; inner: index of the right child (the left one is next)
     int count;  // leaf: number of slots; inner: 0
   };
+  // What the search reads of a node, in two cache lines: its children's boxes and where they are.
+  struct alignas(64) SearchNode {
+    BvhChildBoxes children;  // inner nodes
+    int first, count;        // as in Node
+  };
 
 
   static double box2(const Node& nd, const double* p) {
@@ -257,7 +267,7 @@ class Tree {
 
   std::vector<Prim> prims_;
   std::vector<Node> nodes_;   // pre-order: children after their parent
-  std::vector<BvhChildBoxes> child_boxes_;  // per inner node: its children's boxes, for the search
+  std::vector<SearchNode> search_;  // the same nodes as the search reads them
   std::vector<Slot> slots_;   // primitives in leaf order
   std::vector<int> slot_of_;  // caller's index -> slot
   int regular_ = 0;
