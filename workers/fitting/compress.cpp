@@ -365,6 +365,8 @@ CompressResult result_of(const CompressState& st, const FitResult& best, std::ve
 
 }  // namespace
 
+CandidateCheck::~CandidateCheck() = default;
+
 CompressResult compress(const Mesh& input, const CompressOptions& o, const std::string& source) {
   const std::unique_ptr<CompressState> st = fit_rounds(input, o, source);
   return o.coarsen ? coarsen_rounds(*st) : result_of(*st, st->best, st->fitting);

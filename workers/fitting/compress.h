@@ -24,6 +24,13 @@ namespace mm {
 class CandidateCheck {
  public:
   CandidateCheck() = default;
+  // Out of line: inlined into the callers' temporaries (Config{}, PrepareParams{}), the
+  // std::function's destructor drew GCC 12's false -Wmaybe-uninitialized.
+  ~CandidateCheck();
+  CandidateCheck(const CandidateCheck&) = default;
+  CandidateCheck(CandidateCheck&&) noexcept = default;
+  CandidateCheck& operator=(const CandidateCheck&) = default;
+  CandidateCheck& operator=(CandidateCheck&&) noexcept = default;
   template <class F, class = std::enable_if_t<std::is_same_v<std::invoke_result_t<F&, const Mesh&>, bool>>>
   CandidateCheck(F f) : f_(std::move(f)) {}
   explicit operator bool() const { return static_cast<bool>(f_); }
