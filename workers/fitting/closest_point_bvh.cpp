@@ -19,10 +19,12 @@ constexpr int kLeafSize = 4;
 
 double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
-// A triangle as the search reads it, in leaf order; fields in the order the search reads them,
-// aligned: most triangles visited are turned away by their box, which then costs one cache line
-// (the search waits on memory more than on arithmetic).
-struct alignas(32) TriSlot {
+// A triangle as the search reads it, in leaf order; fields in the order the search reads them:
+// most triangles visited are turned away by their box, read from the record's first bytes (the
+// search waits on memory more than on arithmetic). Not over-aligned: std::vector's aligned
+// allocations fragmented the heap (blade's protect-path peak RSS 96 -> 124 MB with these
+// records and the quality tree's aligned to cache lines).
+struct TriSlot {
   static constexpr int kVertices = 3;
   double lo[3], hi[3];  // bounding box
   int id;          // the caller's index
@@ -249,8 +251,8 @@ class Tree {
     int first;  // leaf: first slot; inner: index of the right child (the left one is next)
     int count;  // leaf: number of slots; inner: 0
   };
-  // What the search reads of a node, in two cache lines: its children's boxes and where they are.
-  struct alignas(64) SearchNode {
+  // What the search reads of a node, in one record: its children's boxes and where they are.
+  struct SearchNode {
     BvhChildBoxes children;  // inner nodes
     int first, count;        // as in Node
   };

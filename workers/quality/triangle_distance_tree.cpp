@@ -18,10 +18,10 @@ namespace {
 using K = CGAL::Simple_cartesian<double>;
 constexpr int kLeafSize = 4;
 
-// Fields in the order a search reads them, aligned to cache lines: most triangles visited are
-// turned away by their box or plane, in the first line (the search waits on memory more than on
-// arithmetic).
-struct alignas(64) Tri {
+// Fields in the order a search reads them: most triangles visited are turned away by their box
+// or plane, the record's first bytes (the search waits on memory more than on arithmetic; not
+// over-aligned, see closest_point_bvh.cpp).
+struct Tri {
   double lo[3], hi[3];
   double n[3], d;  // unit normal and offset of the plane, when `prunable`
   bool prunable;   // not a sliver: the plane distance is accurate enough to skip on
@@ -29,8 +29,8 @@ struct alignas(64) Tri {
   K::Triangle_3 t;
 };
 
-// A node as the search reads it, in two cache lines.
-struct alignas(64) Node {
+// A node as the search reads it, in one record.
+struct Node {
   BvhChildBoxes children;  // inner nodes: the children's boxes
   int first;  // leaf: first triangle (leaf order); inner: index of the right child (left is next)
   int count;  // leaf: number of triangles; inner: 0
