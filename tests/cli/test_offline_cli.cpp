@@ -671,7 +671,9 @@ TEST(CliCompress, SmallerAnglesWhenTheDefaultOnesMissTheTolerance) {
 }
 
 // `compress` coarsens by default: on the flanged-cylinder sample it writes a polyhedron with
-// fewer control vertices than `--no-coarsen` does, within the tolerance by `compare`.
+// fewer control vertices than `--no-coarsen` does, within the tolerance by `compare`. (Not
+// always a smaller stream: `--no-coarsen`'s rounds start warm, and here its 78 vertices hold
+// the tolerance at 7 bits, 233 bytes, the coarsened 74 at 8, 255 bytes.)
 TEST(CliCompress, CoarsensUnlessToldNot) {
   Scratch s;
   const std::string part = s / "flanged.off", coarse = s / "coarse.mmc", plain = s / "plain.mmc";
@@ -683,6 +685,5 @@ TEST(CliCompress, CoarsensUnlessToldNot) {
   EXPECT_EQ(j["coarsened_angle"].get<double>(), j["angle"].get<double>());
   EXPECT_TRUE(jp["coarsened_angle"].is_null());
   EXPECT_LT(j["control_vertices"].get<int>(), jp["control_vertices"].get<int>());
-  EXPECT_LT(j["stream_bytes"].get<std::size_t>(), jp["stream_bytes"].get<std::size_t>());
   EXPECT_LE(compared_hausdorff(s, part, coarse), 0.005);
 }

@@ -54,6 +54,10 @@ struct CompressOptions {
   // the first round's vertex count (about one vertex per patch beyond the corners), which also
   // keeps the spectral watermark's capacity. Streams 9 % smaller over 17 parts and 3 seeds, for 3-5x the
   // fit time, so off here and in protect jobs, on in `meshmark compress`.
+  // Without it, the rounds' polyhedron is the result, and a round that follows one within 1.5x
+  // the tolerance starts from that round's fit (warm start, fewer iterations); with it, every
+  // round starts from the part, which the coarsening's streams came out smaller from
+  // (docs/compression.md, step 6).
   bool coarsen = false;
   // The fit's sampling seed. Each seed gives its own deterministic result; which vertex count
   // meets the tolerance varies with it by 10-20 %, so benchmarks compare over several.
@@ -93,6 +97,7 @@ struct CompressResult {
   // fit's own measurement (what steered the next round).
   std::vector<int> round_vertices;
   std::vector<double> round_errors;
+  std::vector<bool> round_warm;  // the round's fit started from the round before's (coarsen off)
   double angle_degrees = 35.0;  // the crease angle it was fitted at (options.angle_degrees)
   int input_vertices = 0, sharp_edges = 0, corners = 0, patches = 0;
 };
@@ -105,8 +110,9 @@ CompressResult compress(const Mesh& mesh, const CompressOptions& options = {},
                         const std::string& source = "mesh");
 
 // compress() in two steps, for a caller that compares the rounds of several crease angles before
-// it spends the coarsening (3-5 times the rounds' time) on one. compress_rounds() is compress()
-// without the coarsening, whatever options.coarsen says, and hands back in `state` what the
+// it spends the coarsening (3-5 times the rounds' time) on one. compress_rounds() runs the rounds
+// compress() with these options runs (cold ones when options.coarsen is set, so it is then not
+// compress() without the coarsening) and stops there; it hands back in `state` what the
 // coarsening needs (the target's trees, the rounds' polyhedra, the options with their verify);
 // coarsen_rounds(*state) then gives bit for bit what compress() with coarsen = true gives.
 // `state` must not outlive what options.verify refers to.

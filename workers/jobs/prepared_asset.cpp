@@ -138,11 +138,12 @@ std::string PrepareParams::key() const {
   // rows stay readable for the copies issued from them. "verify=dense": rounds meet the
   // tolerance only by the quality code's dense measurement (as `meshmark compress`); rows made
   // before it (without) stay readable the same way, and so do rows fitted with triangles only
-  // (before rail quads: no ";quads=rail").
+  // (before rail quads: no ";quads=rail") and rows whose rounds all started from the part
+  // (before warm rounds: no ";rounds=warm", which compress() runs without coarsening).
   const CompressOptions& c = compression;
   return "prepare-v2;compress;verify=dense;tolerance=" + shortest(c.tolerance) + ";max_vertices=" + std::to_string(c.max_vertices) +
          ";levels=" + std::to_string(c.levels) + ";angle=" + shortest(c.angle_degrees) +
-         ";max_rounds=" + std::to_string(c.max_rounds) + (c.rail_quads ? ";quads=rail" : "") + (c.coarsen ? ";coarsen=1" : "") +
+         ";max_rounds=" + std::to_string(c.max_rounds) + (c.rail_quads ? ";quads=rail" : "") + (c.coarsen ? ";coarsen=1" : ";rounds=warm") +
          (c.seed != 1 ? ";seed=" + std::to_string(c.seed) : "") + fallback_key(fallback_angles) +
          ";basis=dense-kirchhoff";
 }
