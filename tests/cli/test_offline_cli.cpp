@@ -686,4 +686,20 @@ TEST(CliCompress, CoarsensUnlessToldNot) {
   EXPECT_TRUE(jp["coarsened_angle"].is_null());
   EXPECT_LT(j["control_vertices"].get<int>(), jp["control_vertices"].get<int>());
   EXPECT_LE(compared_hausdorff(s, part, coarse), 0.005);
+  // The written polyhedron's rounds: cold before a coarsening, warm near the tolerance without.
+  for (const json* x : {&j, &jp}) {
+    const auto n = (*x)["rounds"].get<std::size_t>();
+    ASSERT_EQ((*x)["round_vertices"].size(), n);
+    ASSERT_EQ((*x)["round_errors"].size(), n);
+    ASSERT_EQ((*x)["round_warm"].size(), n);
+    EXPECT_FALSE((*x)["round_warm"][0].get<bool>());
+  }
+  for (const auto& w : j["round_warm"]) EXPECT_FALSE(w.get<bool>());
+  bool any_warm = false;
+  for (std::size_t k = 1; k < jp["round_warm"].size(); ++k) {
+    if (!jp["round_warm"][k].get<bool>()) continue;
+    any_warm = true;
+    EXPECT_LE(jp["round_errors"][k - 1].get<double>(), 1.5 * 0.005) << k;
+  }
+  EXPECT_TRUE(any_warm) << jp.dump();
 }
