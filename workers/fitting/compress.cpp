@@ -261,7 +261,6 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
   // meets it, the rounds left bisect between the two, since the growth step may overshoot.
   int failed_n = 0, fit_n = 0;
   WarmStart warm_start;
-  bool stalled = false;  // a warm round added vertices and came out no closer: the next is cold
   for (int round = 0; round < o.max_rounds; ++round) {
     ++out.rounds;
     auto control = decimation.build(co);
@@ -297,35 +296,46 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
       }
       return variant_fits;
     };
-    const bool warm = !o.coarsen && round > 0 && !stalled && out.round_errors.back() <= kWarmWithin * o.tolerance;
-    FitOptions round_fit = fit;
-    if (warm) {
-      warm_start.apply(control.mesh.points, control.source);
-      round_fit.iterations = kWarmIterations;
-    }
-    FitResult triangles = fit_control_points(control.mesh, target, round_fit);
-    const Points fitted = triangles.control.points;
-    bool fits = consider(std::move(triangles));
-    // The same polyhedron with its crease-railed strips as quads, whose walls do not sag, fitted
-    // from the triangles' positions. Neither variant wins everywhere (fandisk's rounds stalled at
-    // 0.55 % with quads alone), so each is a candidate. Not when the triangles met the
-    // tolerance: the quads would only add a candidate of as many vertices, whose stream is
-    // larger (version 3 codes a quad for about twice a triangle's bits), and the next round
-    // is a bisection step that needs no errors to steer.
-    if (o.rail_quads && !fits) {
-      Mesh quads = pair_rail_quads(control.mesh);
-      if (quads.num_faces() != control.mesh.num_faces()) {
-        quads.points = fitted;
-        // 3 iterations instead of 6 gave streams about as small over 17 parts and 3 seeds
-        // (geometric mean 301.7 against 300.1 bytes) in 25 % less fit time, but fandisk_quads'
-        // polyhedron then lost its mark in a welded STL copy (docs/compression.md).
-        fits = consider(fit_control_points(quads, target, fit));
+    // The round's polyhedron fitted from `start`, then, where the triangles miss, with its
+    // crease-railed strips as quads, whose walls do not sag, from the triangles' positions.
+    // Neither variant wins everywhere (fandisk's rounds stalled at 0.55 % with quads alone), so
+    // each is a candidate. Not when the triangles met the tolerance: the quads would only add a
+    // candidate of as many vertices, whose stream is larger (version 3 codes a quad for about
+    // twice a triangle's bits), and the next round is a bisection step that needs no errors to
+    // steer.
+    const Points from_part = control.mesh.points;
+    const auto fit_variants = [&](const Points& start, const FitOptions& with) {
+      control.mesh.points = start;
+      FitResult triangles = fit_control_points(control.mesh, target, with);
+      const Points fitted = triangles.control.points;
+      bool met = consider(std::move(triangles));
+      if (o.rail_quads && !met) {
+        Mesh quads = pair_rail_quads(control.mesh);
+        if (quads.num_faces() != control.mesh.num_faces()) {
+          quads.points = fitted;
+          // 3 iterations instead of 6 gave streams about as small over 17 parts and 3 seeds
+          // (geometric mean 301.7 against 300.1 bytes) in 25 % less fit time, but fandisk_quads'
+          // polyhedron then lost its mark in a welded STL copy (docs/compression.md).
+          met = consider(fit_control_points(quads, target, fit));
+        }
       }
+      return met;
+    };
+    const bool warm = !o.coarsen && round > 0 && out.round_errors.back() <= kWarmWithin * o.tolerance;
+    bool fits;
+    if (warm) {
+      Points start = from_part;
+      warm_start.apply(start, control.source);
+      FitOptions warm_fit = fit;
+      warm_fit.iterations = kWarmIterations;
+      fits = fit_variants(start, warm_fit);
+      // More vertices and no closer than the round before: fitted again from the part, and the
+      // better fit counts (the hemisphere's warm rounds came out worse than its cold ones).
+      if (!fits && n > out.round_vertices.back() && rel >= out.round_errors.back()) fits = fit_variants(from_part, fit);
+    } else {
+      fits = fit_variants(from_part, fit);
     }
-    if (!o.coarsen) {
-      warm_start.remember(steering, control.source, mesh.num_vertices());
-      stalled = warm && n > out.round_vertices.back() && rel >= out.round_errors.back();
-    }
+    if (!o.coarsen) warm_start.remember(steering, control.source, mesh.num_vertices());
     out.round_vertices.push_back(n);
     out.round_errors.push_back(rel);
     out.round_warm.push_back(warm);
