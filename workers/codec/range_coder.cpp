@@ -1,5 +1,6 @@
 #include "codec/range_coder.h"
 
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -32,12 +33,26 @@ std::uint32_t bit_cost_256(const BitModel& m, int b) {
   return static_cast<std::uint32_t>(cost_of(b ? 65536 - m.p : m.p));
 }
 
+// x / rate for x < 2^16 as (x * kInverse[rate]) >> 32 with kInverse[rate] = ceil(2^32 / rate):
+// the product overshoots x / rate by less than x / 2^32 < 2^-16, less than the 1 / rate the
+// fraction of x / rate always falls short of the next integer, so the quotient is exact (the
+// tests check every x and rate). The division it replaces was a fifth of bit()'s time.
+constexpr std::array<std::uint64_t, kMaxRate + 1> kInverse = [] {
+  std::array<std::uint64_t, kMaxRate + 1> t{};
+  for (std::uint64_t r = 1; r <= kMaxRate; ++r) t[r] = ((1ull << 32) + r - 1) / r;
+  return t;
+}();
+
+std::uint32_t divide_by_rate(std::uint32_t x, int rate) {
+  return static_cast<std::uint32_t>((static_cast<std::uint64_t>(x) * kInverse[static_cast<std::size_t>(rate)]) >> 32);
+}
+
 void adapt(BitModel& m, int b) {
   const int rate = m.n + 2 < kMaxRate ? m.n + 2 : kMaxRate;
   if (m.n < 0xFFFF) ++m.n;
   std::int32_t p = m.p;
-  if (b) p -= p / rate;
-  else p += (65536 - p) / rate;
+  if (b) p -= static_cast<std::int32_t>(divide_by_rate(static_cast<std::uint32_t>(p), rate));
+  else p += static_cast<std::int32_t>(divide_by_rate(static_cast<std::uint32_t>(65536 - p), rate));
   if (p < static_cast<std::int32_t>(kMinP)) p = kMinP;
   if (p > static_cast<std::int32_t>(kMaxP)) p = kMaxP;
   m.p = static_cast<std::uint16_t>(p);
@@ -58,7 +73,7 @@ void RangeEncoder::shift_low() {
 
 void RangeEncoder::bit(BitModel& m, int b) {
   const std::uint32_t bd = bound(range_, m);
-  cost_ += cost_of(b ? 65536 - m.p : m.p);
+  if (count_cost_) cost_ += cost_of(b ? 65536 - m.p : m.p);
   if (b) {
     low_ += bd;
     range_ -= bd;
@@ -73,7 +88,7 @@ void RangeEncoder::bit(BitModel& m, int b) {
 }
 
 void RangeEncoder::bits(std::uint32_t value, int count) {
-  cost_ += 256ull * static_cast<std::uint64_t>(count);
+  if (count_cost_) cost_ += 256ull * static_cast<std::uint64_t>(count);
   for (int i = count - 1; i >= 0; --i) {
     range_ >>= 1;
     if ((value >> i) & 1) low_ += range_;

@@ -345,7 +345,7 @@ GridPoints snap_for_mode(const GridPoints& grid, const std::vector<std::uint8_t>
   // and reproduces the stream.
   const Eigen::Array<std::int32_t, 1, 3> axis_min = grid.colwise().minCoeff(), axis_max = grid.colwise().maxCoeff();
   CoordModels cm;
-  RangeEncoder rc;  // adapts the models exactly as the real encoder will; its bytes are dropped
+  RangeEncoder rc(false);  // adapts the models exactly as the real encoder will; its bytes are dropped
   std::vector<Candidate> cands;
   std::vector<std::int32_t> scratch, options;
   for (int v = 0; v < n; ++v) {
@@ -563,7 +563,7 @@ std::vector<std::uint8_t> encode_v3(const Mesh& mesh, const Quantization& q, con
                                     const std::vector<std::uint8_t>* snap) {
   const int n = mesh.num_vertices();
   const auto head = header_bytes(mesh, q, levels_code(metadata));
-  RangeEncoder after_faces;
+  RangeEncoder after_faces(bits != nullptr);  // the copies below count costs for `bits` only
   FaceModels fm;
   RangeFaceSink sink(after_faces, fm);
   std::vector<std::vector<int>> faces;
