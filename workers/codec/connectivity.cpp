@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <deque>
-#include <map>
 #include <stdexcept>
 #include <unordered_set>
 
@@ -140,11 +139,14 @@ void encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
   std::vector<std::vector<int>> canon = faces;
   for (auto& f : canon) std::rotate(f.begin(), std::min_element(f.begin(), f.end()), f.end());
   std::sort(canon.begin(), canon.end());
-  // Directed edge -> faces holding it, in canonical order.
-  std::map<Gate, std::vector<std::size_t>> holder;
+  // Directed edge -> faces holding it, in canonical order: (edge, face) rows sorted, so a
+  // gate's faces are one run (a flat table: a map of vectors was a third of a small mesh's
+  // traversal, which the stream search runs for 64 numberings of each chosen polyhedron).
+  std::vector<std::pair<Gate, std::size_t>> holder;
   for (std::size_t i = 0; i < canon.size(); ++i)
     for (std::size_t k = 0; k < canon[i].size(); ++k)
-      holder[{canon[i][k], canon[i][(k + 1) % canon[i].size()]}].push_back(i);
+      holder.push_back({{canon[i][k], canon[i][(k + 1) % canon[i].size()]}, i});
+  std::sort(holder.begin(), holder.end());
 
   Neighbours nb(num_vertices);
   std::vector<char> visited(canon.size(), 0);
@@ -232,13 +234,12 @@ void encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
     // Version 2: a gate whose far side is already held by a placed face costs nothing.
     if (relative_indices && nb.placed(b, a)) continue;
     std::size_t across = canon.size();
-    const auto h = holder.find({b, a});
-    if (h != holder.end())
-      for (std::size_t i : h->second)
-        if (!visited[i]) {
-          across = i;
-          break;
-        }
+    for (auto h = std::lower_bound(holder.begin(), holder.end(), std::make_pair(Gate{b, a}, std::size_t{0}));
+         h != holder.end() && h->first == Gate{b, a}; ++h)
+      if (!visited[h->second]) {
+        across = h->second;
+        break;
+      }
     const GateContext gctx{g.from_size, previous};
     if (across == canon.size()) {
       sink.symbol(0, gctx);
