@@ -315,7 +315,9 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
           quads.points = fitted;
           // 3 iterations instead of 6 gave streams about as small over 17 parts and 3 seeds
           // (geometric mean 301.7 against 300.1 bytes) in 25 % less fit time, but fandisk_quads'
-          // polyhedron then lost its mark in a welded STL copy (docs/compression.md).
+          // polyhedron then lost its mark in a welded STL copy (docs/compression.md). `fit`, not
+          // `with`: in warm rounds too (the quads at 3 there: 14,189 bytes over the bench parts
+          // and seeds against 13,859; docs/compression.md, "Warm rounds").
           met = consider(fit_control_points(quads, target, fit));
         }
       }
