@@ -349,6 +349,7 @@ void add_compress_commands(CLI::App& app) {
                        {"round_vertices", r.round_vertices},
                        {"round_errors", r.round_errors},
                        {"round_warm", r.round_warm},
+                       {"round_levels", r.round_levels},
                        {"angle", chosen_fit.angle},
                        {"angles_fitted", fitted},
                        {"angles_refused", fits.refused},

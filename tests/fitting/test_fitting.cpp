@@ -1,5 +1,6 @@
 // Fitting and the compress pipeline on the shared meshes: error below tolerance, multiple
 // components, open boundaries, scale invariance, determinism, and clear failures.
+#include <cmath>
 #include <filesystem>
 #include <numeric>
 #include <type_traits>
@@ -82,8 +83,18 @@ TEST(Compress, FandiskWithinHundredControlVertices) {
   auto m = mm::read_mesh(mm::test::shared_mesh("fandisk.off"));
   mm::CompressOptions o;
   o.max_vertices = 100;
-  o.tolerance = 0.005;
+  // A tenth of headroom on both, for the 10-bit grid: the protect path's reweighted fit sits
+  // right at what it is asked for (at 0.5 % and no RMS check, 80 vertices whose RMS is 0.1006 %
+  // by the fit's measurement and whose 10-bit stream decodes to 0.502 %). The RMS is checked by
+  // the dense measurement (CompressOptions::verify), as a caller with an RMS target would.
+  o.tolerance = 0.0045;
+  o.verify = [&m, &o](const mm::Mesh& c) {
+    const auto d = mm::decoded_distance(m, c, o.levels);
+    return d.hausdorff_relative() <= o.tolerance && d.rms_relative() <= 0.0009;
+  };
   auto r = mm::compress(m, o);
+  std::cout << "fandisk: " << r.control.num_vertices() << " control vertices, Hausdorff " << rel(r.stats.hausdorff, r.stats)
+            << ", RMS " << rel(r.stats.rms, r.stats) << "\n";
   EXPECT_LE(r.control.num_vertices(), 100);
   EXPECT_TRUE(r.tolerance_met) << rel(r.stats.hausdorff, r.stats);
   EXPECT_EQ(r.tolerance_met, rel(r.stats.hausdorff, r.stats) <= o.tolerance);
@@ -120,7 +131,8 @@ TEST(Compress, ControlVerticesComeInStreamOrder) {
 
 // The reason a miss is reported with: the budget when the fit stopped at it (fandisk at 40
 // vertices), the rounds when it stopped below it (fandisk_quads' folds at 35 degrees: 176 of
-// 1000 in 6 rounds).
+// 1000 in 6 rounds, as `meshmark compress` fits them; the protect path's reweighted fit meets
+// the tolerance there).
 TEST(Compress, ToleranceMissReasonTellsTheBudgetFromTheRounds) {
   MM_REQUIRE_SHARED_MESHES();
   mm::CompressOptions o;
@@ -129,6 +141,7 @@ TEST(Compress, ToleranceMissReasonTellsTheBudgetFromTheRounds) {
   ASSERT_FALSE(budget.tolerance_met);
   EXPECT_EQ(mm::tolerance_miss_reason(budget, o), "within the control vertex budget of 40");
   mm::CompressOptions q;
+  q.coarsen = true;
   const auto rounds = mm::compress(mm::read_mesh(mm::test::shared_mesh("fandisk_quads.off")), q);
   ASSERT_FALSE(rounds.tolerance_met);
   EXPECT_EQ(mm::tolerance_miss_reason(rounds, q), "in 6 refinement rounds: " +
@@ -325,7 +338,9 @@ TEST(Compress, RoundsGrowFromTheVerticesTheyHad) {
 // round's fit and fits 4 times instead of 6; the rounds before it start from the part, and so do
 // all of them when a coarsening follows (compress_rounds with coarsen set). On blade the warm
 // rounds meet the tolerance with fewer control vertices than the cold ones (443 in 4 rounds
-// against 516 in 5; docs/compression.md, step 6: 7 % fewer over the bench parts and seeds).
+// against 516 in 5 when warm rounds came; docs/compression.md, step 6: 7 % fewer over the bench
+// parts and seeds. With coarse rounds and the reweighted fit, `meshmark compress --no-coarsen`
+// gives 407 in 4).
 TEST(Compress, RoundsNearTheToleranceStartFromTheLastFit) {
   MM_REQUIRE_SHARED_MESHES();
   const mm::Mesh part = mm::read_mesh(mm::test::shared_mesh("blade.stl"));
@@ -349,6 +364,75 @@ TEST(Compress, RoundsNearTheToleranceStartFromTheLastFit) {
   ASSERT_TRUE(warm.tolerance_met);
   ASSERT_TRUE(cold.tolerance_met);
   EXPECT_LT(warm.control.num_vertices(), cold.control.num_vertices());
+}
+
+// Reweighting the correspondences by their distance (FitOptions::reweight) pulls the largest
+// distances in, which is what the tolerance is on. One fit of the same control mesh, reweighted
+// against plain least squares, over six parts and four vertex counts: a smaller Hausdorff
+// distance in most cases (20 of 24 by 3 % or more when this was written, geometric mean of the
+// ratios 0.89) and never much larger (the cap on the extra weight: uncapped, rocker's 400-vertex
+// fit came out 2.2x worse).
+TEST(Fit, ReweightingLowersTheLargestDistance) {
+  MM_REQUIRE_SHARED_MESHES();
+  int better = 0, cases = 0;
+  double log_sum = 0;
+  for (const char* name : {"fandisk.off", "blade.stl", "rocker.stl", "bracket-3.stl", "abc5.stl", "abc8.stl"}) {
+    const auto m = load_normalized(name);
+    const auto f = mm::detect_features(m);
+    const auto s = mm::segment(m, f);
+    for (int vertices : {60, 120, 250, 400}) {
+      mm::ControlOptions co;
+      co.target_vertices = vertices;
+      const auto c = mm::build_control_polyhedron(m, f, s, co);
+      mm::FitOptions plain, reweighted;
+      reweighted.reweight = 0.3;
+      const double a = mm::fit_control_points(c.mesh, m, f, plain).stats.hausdorff;
+      const double b = mm::fit_control_points(c.mesh, m, f, reweighted).stats.hausdorff;
+      EXPECT_LT(b, 1.25 * a) << name << " " << vertices;
+      better += b < 0.97 * a;
+      log_sum += std::log(b / a);
+      ++cases;
+    }
+  }
+  EXPECT_GE(better, 16) << cases;
+  EXPECT_LT(std::exp(log_sum / cases), 0.95);
+}
+
+// Without coarsening, a round far from the tolerance (the first; one after a round farther than
+// 1.5x it) is fitted a subdivision level lower, only to steer the next; the result and every
+// candidate are full-level fits, whose statistics measure_fit at `levels` reproduces. With
+// max_rounds 1 the only round is fitted again at the full level to give a result. With
+// coarsening every round is at the full level.
+TEST(Compress, CoarseRoundsOnlySteer) {
+  MM_REQUIRE_SHARED_MESHES();
+  const mm::Mesh part = mm::read_mesh(mm::test::shared_mesh("abc8.stl"));
+  mm::CompressOptions o;
+  const auto r = mm::compress(part, o, "abc8");
+  ASSERT_EQ(r.round_levels.size(), static_cast<size_t>(r.rounds));
+  EXPECT_EQ(r.round_levels[0], o.levels - 1);
+  EXPECT_GT(r.round_errors[0], o.tolerance);
+  for (int k = 0; k < r.rounds; ++k)
+    if (r.round_warm[static_cast<size_t>(k)]) {
+      EXPECT_EQ(r.round_levels[static_cast<size_t>(k)], o.levels) << k;
+    }
+  ASSERT_TRUE(r.tolerance_met);
+  for (const auto& c : r.candidates) {
+    const auto again = mm::measure_fit(c.control, o.levels, part);
+    EXPECT_NEAR(again.hausdorff, c.stats.hausdorff, 1e-6 * c.stats.diagonal);
+  }
+  mm::CompressOptions one = o;
+  one.max_rounds = 1;
+  const auto single = mm::compress(part, one, "abc8");
+  ASSERT_EQ(single.round_levels.size(), 1u);
+  EXPECT_EQ(single.round_levels[0], o.levels);
+  EXPECT_NEAR(mm::measure_fit(single.control, o.levels, part).hausdorff, single.stats.hausdorff,
+              1e-6 * single.stats.diagonal);
+  mm::CompressOptions cold = o;
+  cold.coarsen = true;
+  std::shared_ptr<const mm::CompressState> state;
+  const auto rounds = mm::compress_rounds(part, cold, "abc8", state);
+  ASSERT_EQ(rounds.round_levels.size(), static_cast<size_t>(rounds.rounds));
+  for (int level : rounds.round_levels) EXPECT_EQ(level, o.levels);
 }
 
 TEST(Compress, BadInputIsRejectedWithAReason) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <memory>
 #include <numeric>
 #include <optional>
@@ -52,6 +53,21 @@ constexpr double kCoarsenLevels[] = {1.0, 0.9, 0.8};
 // a denser polyhedron stalled (abc8 at 2.4 % with 1000 vertices, 0.57 % from the part at 184).
 constexpr int kWarmIterations = 4;
 constexpr double kWarmWithin = 1.5;
+
+// The fit's reweighting towards its largest distances (FitOptions::reweight), without
+// coarsening. Over the nine bench parts and seeds 1-3 (protect path) it met the tolerance with
+// 4,772 control vertices against 5,504 (0.3; 1.0 gave 4,996), in 13,699 bytes against 13,572.
+// Not with coarsening: there its tighter fits needed finer grids (`meshmark compress`'s median
+// size ratio at seed 2 fell from 5.63 to 4.85; docs/compression.md).
+constexpr double kReweight = 0.3;
+
+// Coarse rounds (without coarsening): a round that does not start warm -- the first, or one after
+// a round farther than kWarmWithin times the tolerance -- only steers the next one, so it is
+// fitted at one subdivision level fewer, a quarter of the refined vertices to query and a
+// smaller surface to search. Its errors are that coarser surface's; should they come within the
+// tolerance, the round is fitted again at the full level from there (as a warm round) and that
+// fit counts. Over the nine bench parts and seeds 1-3 (protect path, with the fit's reweighting):
+// fit time -16 %, 4,938 control vertices against 4,772 at the full level (docs/compression.md).
 
 // Where a warm round starts its control vertices, per input vertex: the last round's fitted
 // position, if that vertex was a control vertex there.
@@ -247,6 +263,7 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
   FitOptions& fit = st.fit;
   fit.seed = o.seed;
   fit.levels = o.levels;
+  fit.reweight = o.coarsen && !std::getenv("MM_RW_ALL") ? 0.0 : kReweight;
   // The target's trees and samples are the same in every round (and in the coarsening).
   st.target = std::make_unique<FitTarget>(mesh, features, fit);
   const FitTarget& target = *st.target;
@@ -261,6 +278,7 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
   // meets it, the rounds left bisect between the two, since the growth step may overshoot.
   int failed_n = 0, fit_n = 0;
   WarmStart warm_start;
+  double diagonal = 0;  // the part's bounding-box diagonal in the unit box (the fits measure it)
   for (int round = 0; round < o.max_rounds; ++round) {
     ++out.rounds;
     auto control = decimation.build(co);
@@ -278,13 +296,17 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     Points steering;  // the better variant's fitted positions
     double rel = 0;
     const int n = control.mesh.num_vertices();
+    bool steer_only = false;  // a coarse round's fits: they steer, they are not results
     const auto consider = [&](FitResult&& variant) {
       const double error = variant.stats.hausdorff / variant.stats.diagonal;
+      diagonal = variant.stats.diagonal;
       if (result_error.empty() || error < rel) {
         result_error = variant.region_error;
         rel = error;
         if (!o.coarsen) steering = variant.control.points;
       }
+      // (Within the tolerance at its level: a coarse round's quads would add nothing to steer by.)
+      if (steer_only) return error <= o.tolerance;
       const bool variant_fits = error <= o.tolerance && confirmed(st, variant.control);
       if (variant_fits) fitting.push_back({variant.control, variant.stats});
       // Best: the fewest vertices among rounds that fit, else the smallest error.
@@ -304,7 +326,7 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     // twice a triangle's bits), and the next round is a bisection step that needs no errors to
     // steer.
     const Points from_part = control.mesh.points;
-    const auto fit_variants = [&](const Points& start, const FitOptions& with) {
+    const auto fit_variants = [&](const Points& start, const FitOptions& with, const FitOptions& quads_with) {
       control.mesh.points = start;
       FitResult triangles = fit_control_points(control.mesh, target, with);
       const Points fitted = triangles.control.points;
@@ -315,32 +337,50 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
           quads.points = fitted;
           // 3 iterations instead of 6 gave streams about as small over 17 parts and 3 seeds
           // (geometric mean 301.7 against 300.1 bytes) in 25 % less fit time, but fandisk_quads'
-          // polyhedron then lost its mark in a welded STL copy (docs/compression.md). `fit`, not
-          // `with`: in warm rounds too (the quads at 3 there: 14,189 bytes over the bench parts
-          // and seeds against 13,859; docs/compression.md, "Warm rounds").
-          met = consider(fit_control_points(quads, target, fit));
+          // polyhedron then lost its mark in a welded STL copy (docs/compression.md). The caller
+          // gives `quads_with` the full iteration count in warm rounds too (the quads at 3 there:
+          // 14,189 bytes over the bench parts and seeds against 13,859; docs/compression.md,
+          // "Warm rounds").
+          met = consider(fit_control_points(quads, target, quads_with));
         }
       }
       return met;
     };
     const bool warm = !o.coarsen && round > 0 && out.round_errors.back() <= kWarmWithin * o.tolerance;
+    FitOptions warm_fit = fit;
+    warm_fit.iterations = kWarmIterations;
     bool fits;
+    int level = o.levels;
     if (warm) {
       Points start = from_part;
       warm_start.apply(start, control.source);
-      FitOptions warm_fit = fit;
-      warm_fit.iterations = kWarmIterations;
-      fits = fit_variants(start, warm_fit);
+      fits = fit_variants(start, warm_fit, fit);
       // More vertices and no closer than the round before: fitted again from the part, and the
       // better fit counts (the hemisphere's warm rounds came out worse than its cold ones).
-      if (!fits && n > out.round_vertices.back() && rel >= out.round_errors.back()) fits = fit_variants(from_part, fit);
+      if (!fits && n > out.round_vertices.back() && rel >= out.round_errors.back()) fits = fit_variants(from_part, fit, fit);
+    } else if (!o.coarsen && o.levels > 1) {
+      FitOptions coarse = fit;
+      coarse.levels = o.levels - 1;
+      steer_only = true;
+      fit_variants(from_part, coarse, coarse);
+      steer_only = false;
+      fits = false;
+      level = coarse.levels;
+      // Within the tolerance, or the last round with no full-level fit yet to give as the result.
+      if (rel <= o.tolerance || (!have && round + 1 == o.max_rounds)) {
+        const Points start = steering;
+        result_error.clear();
+        fits = fit_variants(start, warm_fit, fit);
+        level = o.levels;
+      }
     } else {
-      fits = fit_variants(from_part, fit);
+      fits = fit_variants(from_part, fit, fit);
     }
     if (!o.coarsen) warm_start.remember(steering, control.source, mesh.num_vertices());
     out.round_vertices.push_back(n);
     out.round_errors.push_back(rel);
     out.round_warm.push_back(warm);
+    out.round_levels.push_back(level);
     if (fits) {
       out.tolerance_met = true;
       fit_n = fit_n == 0 ? n : std::min(fit_n, n);
@@ -350,18 +390,18 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     if (fit_n > 0) {
       // Bisect while it could still save a tenth of the vertices.
       if (failed_n == 0 || fit_n - failed_n <= std::max(4, fit_n / 10)) break;
-      if (!fits) raise_importance(co.importance, result_error, o.tolerance * best.stats.diagonal);
+      if (!fits) raise_importance(co.importance, result_error, o.tolerance * diagonal);
       co.target_vertices = (failed_n + fit_n) / 2;
       continue;
     }
     // At the budget, rounds only move vertices around (the importance keeps growing where the
     // error stays), which helps unevenly: keep going to max_rounds and keep the best.
     // Spend more vertices where the surface is still too far, and a few more overall.
-    raise_importance(co.importance, result_error, o.tolerance * best.stats.diagonal);
+    raise_importance(co.importance, result_error, o.tolerance * diagonal);
     // Grown from the smallest error so far: a round worse than an earlier one with fewer
     // vertices went astray in its decimation, and is no measure of how many more are needed
     // (flanged_cylinder: 68 vertices at 0.66 %, then 79 at 1.64 % grew to 144).
-    const double grow_rel = std::min(rel, best.stats.hausdorff / best.stats.diagonal);
+    const double grow_rel = have ? std::min(rel, best.stats.hausdorff / best.stats.diagonal) : rel;
     const double grow = std::clamp(std::sqrt(grow_rel / o.tolerance), 1.15, 2.0);
     // From the vertices the round had, where the decimation stopped above its target (corners
     // and crease floors): grown from the target, abc8's second round had 106 vertices to the

@@ -98,6 +98,9 @@ struct CompressResult {
   std::vector<int> round_vertices;
   std::vector<double> round_errors;
   std::vector<bool> round_warm;  // the round's fit started from the round before's (coarsen off)
+  // The subdivision level the round's error was measured at: `levels`, or one fewer for a coarse
+  // round that stayed above the tolerance (coarsen off; compress.cpp, "Coarse rounds").
+  std::vector<int> round_levels;
   double angle_degrees = 35.0;  // the crease angle it was fitted at (options.angle_degrees)
   int input_vertices = 0, sharp_edges = 0, corners = 0, patches = 0;
 };

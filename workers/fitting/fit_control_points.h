@@ -20,6 +20,12 @@ struct FitOptions {
   int max_vertex_samples = 5000;  // target vertices used per iteration (all for the final error)
   double crease_weight = 8.0; // weight of crease correspondences relative to surface ones
   double smoothness = 1e-4;   // umbrella-Laplacian regularisation (relative to the data term)
+  // From the second iteration on, a correspondence at distance d weighs 1 + reweight (d / rms)^2
+  // times its weight (the extra at most 10), rms being the last iteration's: the largest
+  // distances, which the tolerance is on, pull harder than least squares lets them (iteratively
+  // reweighted least squares).
+  // 0: plain least squares. compress() sets it without coarsening (compress.cpp, kReweight).
+  double reweight = 0;
   std::uint64_t seed = 1;     // sampling is deterministic for a given seed
 };
 
