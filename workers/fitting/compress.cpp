@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <memory>
 #include <numeric>
 #include <optional>
@@ -54,11 +53,10 @@ constexpr double kCoarsenLevels[] = {1.0, 0.9, 0.8};
 constexpr int kWarmIterations = 4;
 constexpr double kWarmWithin = 1.5;
 
-// The fit's reweighting towards its largest distances (FitOptions::reweight), without
-// coarsening. Over the nine bench parts and seeds 1-3 (protect path) it met the tolerance with
-// 4,772 control vertices against 5,504 (0.3; 1.0 gave 4,996), in 13,699 bytes against 13,572.
-// Not with coarsening: there its tighter fits needed finer grids (`meshmark compress`'s median
-// size ratio at seed 2 fell from 5.63 to 4.85; docs/compression.md).
+// The fit's reweighting towards its largest distances (FitOptions::reweight; its cap is
+// fit_control_points.cpp's), without coarsening. Not with coarsening: there its tighter fits
+// needed finer grids, and `meshmark compress`'s median size ratios went 5.73 / 5.63 / 5.07 ->
+// 5.28 / 5.92 / 4.98 at seeds 1-3 (uncapped: 5.33 / 4.85 / 4.92; docs/compression.md).
 constexpr double kReweight = 0.3;
 
 // Coarse rounds (without coarsening): a round that does not start warm -- the first, or one after
@@ -66,8 +64,10 @@ constexpr double kReweight = 0.3;
 // fitted at one subdivision level fewer, a quarter of the refined vertices to query and a
 // smaller surface to search. Its errors are that coarser surface's; should they come within the
 // tolerance, the round is fitted again at the full level from there (as a warm round) and that
-// fit counts. Over the nine bench parts and seeds 1-3 (protect path, with the fit's reweighting):
-// fit time -16 %, 4,938 control vertices against 4,772 at the full level (docs/compression.md).
+// fit counts. Measured together with the reweighting over the nine bench parts and seeds 1-3
+// (protect path): fit time 35.4 -> 27.3 s, 5,504 -> 4,798 control vertices, 13,572 -> 12,968
+// bytes, every part within the tolerance; the reweighting alone 4,772 vertices (uncapped) for no
+// less time, coarse rounds alone 5,867 vertices (docs/compression.md, "Reweighted fits").
 
 // Where a warm round starts its control vertices, per input vertex: the last round's fitted
 // position, if that vertex was a control vertex there.
@@ -263,7 +263,7 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
   FitOptions& fit = st.fit;
   fit.seed = o.seed;
   fit.levels = o.levels;
-  fit.reweight = o.coarsen && !std::getenv("MM_RW_ALL") ? 0.0 : kReweight;
+  fit.reweight = o.coarsen ? 0.0 : kReweight;
   // The target's trees and samples are the same in every round (and in the coarsening).
   st.target = std::make_unique<FitTarget>(mesh, features, fit);
   const FitTarget& target = *st.target;
