@@ -84,7 +84,7 @@ TEST(Compress, FandiskWithinHundredControlVertices) {
   mm::CompressOptions o;
   o.max_vertices = 100;
   // A tenth of headroom on both, for the 10-bit grid: the protect path's reweighted fit sits
-  // right at what it is asked for (at 0.5 % and no RMS check, 80 vertices whose RMS is 0.1006 %
+  // right at what it is asked for (at 0.5 % and no RMS check, 74 vertices whose RMS is 0.1006 %
   // by the fit's measurement and whose 10-bit stream decodes to 0.502 %). The RMS is checked by
   // the dense measurement (CompressOptions::verify), as a caller with an RMS target would.
   o.tolerance = 0.0045;
