@@ -278,7 +278,6 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
   // meets it, the rounds left bisect between the two, since the growth step may overshoot.
   int failed_n = 0, fit_n = 0;
   WarmStart warm_start;
-  double diagonal = 0;  // the part's bounding-box diagonal in the unit box (the fits measure it)
   for (int round = 0; round < o.max_rounds; ++round) {
     ++out.rounds;
     auto control = decimation.build(co);
@@ -296,10 +295,9 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     Points steering;  // the better variant's fitted positions
     double rel = 0;
     const int n = control.mesh.num_vertices();
-    bool steer_only = false;  // a coarse round's fits: they steer, they are not results
-    const auto consider = [&](FitResult&& variant) {
+    // `steer_only`: a coarse round's fit, which steers and is no result.
+    const auto consider = [&](FitResult&& variant, bool steer_only) {
       const double error = variant.stats.hausdorff / variant.stats.diagonal;
-      diagonal = variant.stats.diagonal;
       if (result_error.empty() || error < rel) {
         result_error = variant.region_error;
         rel = error;
@@ -327,10 +325,11 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     // steer.
     const Points from_part = control.mesh.points;
     const auto fit_variants = [&](const Points& start, const FitOptions& with, const FitOptions& quads_with) {
+      const bool steer_only = with.levels != o.levels;
       control.mesh.points = start;
       FitResult triangles = fit_control_points(control.mesh, target, with);
       const Points fitted = triangles.control.points;
-      bool met = consider(std::move(triangles));
+      bool met = consider(std::move(triangles), steer_only);
       if (o.rail_quads && !met) {
         Mesh quads = pair_rail_quads(control.mesh);
         if (quads.num_faces() != control.mesh.num_faces()) {
@@ -341,7 +340,7 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
           // gives `quads_with` the full iteration count in warm rounds too (the quads at 3 there:
           // 14,189 bytes over the bench parts and seeds against 13,859; docs/compression.md,
           // "Warm rounds").
-          met = consider(fit_control_points(quads, target, quads_with));
+          met = consider(fit_control_points(quads, target, quads_with), steer_only);
         }
       }
       return met;
@@ -361,9 +360,7 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     } else if (!o.coarsen && o.levels > 1) {
       FitOptions coarse = fit;
       coarse.levels = o.levels - 1;
-      steer_only = true;
       fit_variants(from_part, coarse, coarse);
-      steer_only = false;
       fits = false;
       level = coarse.levels;
       // Within the tolerance, or the last round with no full-level fit yet to give as the result.
@@ -390,14 +387,14 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     if (fit_n > 0) {
       // Bisect while it could still save a tenth of the vertices.
       if (failed_n == 0 || fit_n - failed_n <= std::max(4, fit_n / 10)) break;
-      if (!fits) raise_importance(co.importance, result_error, o.tolerance * diagonal);
+      if (!fits) raise_importance(co.importance, result_error, o.tolerance * target.diagonal());
       co.target_vertices = (failed_n + fit_n) / 2;
       continue;
     }
     // At the budget, rounds only move vertices around (the importance keeps growing where the
     // error stays), which helps unevenly: keep going to max_rounds and keep the best.
     // Spend more vertices where the surface is still too far, and a few more overall.
-    raise_importance(co.importance, result_error, o.tolerance * diagonal);
+    raise_importance(co.importance, result_error, o.tolerance * target.diagonal());
     // Grown from the smallest error so far: a round worse than an earlier one with fewer
     // vertices went astray in its decimation, and is no measure of how many more are needed
     // (flanged_cylinder: 68 vertices at 0.66 %, then 79 at 1.64 % grew to 144).

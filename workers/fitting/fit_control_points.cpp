@@ -528,6 +528,7 @@ struct FitTarget::Impl {
 FitTarget::FitTarget(const Mesh& target, const Features& features, const FitOptions& options)
     : impl_(std::make_unique<Impl>(target, features, options)) {}
 FitTarget::~FitTarget() = default;
+double FitTarget::diagonal() const { return impl_->diagonal; }
 
 FitResult fit_control_points(const Mesh& control, const Mesh& target, const Features& features,
                              const FitOptions& o) {

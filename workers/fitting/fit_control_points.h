@@ -55,6 +55,8 @@ class FitTarget {
   // copied. The sampling options (seed, area_samples, max_vertex_samples) are fixed here.
   FitTarget(const Mesh& target, const Features& features, const FitOptions& options = {});
   ~FitTarget();
+  // The target's bounding-box diagonal: what FitStats::diagonal holds for every fit against it.
+  double diagonal() const;
   FitTarget(const FitTarget&) = delete;
   FitTarget& operator=(const FitTarget&) = delete;
   struct Impl;
