@@ -297,6 +297,17 @@ TEST(SurfaceDistance, APartMeasuredOnceGivesEachMeasurementsOwnNumbers) {
     EXPECT_TRUE(same(*d, fresh_bumped));
     EXPECT_TRUE(same(mm::decoded_distance(part, control, 2), fresh_decoded));
   }
+  // The same triangles moved (a control polyhedron's stream at another grid) are measured on the
+  // tree layout of the surface before them (MeasuredSurface remembers it): their own numbers.
+  mm::Mesh moved = control;
+  moved.points *= 1.01;
+  moved.points.row(0) *= 1.05;
+  const mm::SurfaceDistance fresh_moved = mm::decoded_distance(s, moved, 2, fast());
+  ASSERT_NE(fresh_moved.hausdorff, fresh_decoded.hausdorff);
+  EXPECT_TRUE(same(mm::decoded_distance(part, moved, 2), fresh_moved));
+  EXPECT_TRUE(mm::decoded_within(part, moved, 2, fresh_moved.hausdorff_relative()));
+  EXPECT_FALSE(mm::decoded_within(part, moved, 2, std::nextafter(fresh_moved.hausdorff_relative(), 0.0)));
+  EXPECT_TRUE(same(mm::decoded_distance(part, control, 2), fresh_decoded));
   // A measured part queries its samples along a curve through space (sample_order), one
   // measured plainly in index order: the same numbers.
   const mm::OneSidedDistance plain = mm::one_sided_distance(s, big, fast());

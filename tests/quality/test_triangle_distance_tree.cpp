@@ -152,4 +152,50 @@ TEST(TriangleDistanceTree, RejectsNoTriangles) {
   EXPECT_THROW(mm::TriangleDistanceTree({}), std::invalid_argument);
 }
 
+// A tree on another tree's layout (the same triangles, moved: a control polyhedron's stream at
+// another grid) answers every query exactly as a tree laid out for its own corners; a layout
+// for another count of triangles is refused.
+TEST(TriangleDistanceTree, OnAnotherTreesLayoutTheAnswersAreTheSame) {
+  using V = Eigen::Vector3d;
+  // A wavy sheet of 2 x 40 x 40 triangles, then every vertex moved by up to half a cell.
+  const int n = 41;
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::vector<V> grid, moved;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      grid.emplace_back(i, j, 3 * std::sin(0.3 * i) * std::cos(0.2 * j));
+      moved.push_back(grid.back() + 0.5 * V(u(rng), u(rng), u(rng)));
+    }
+  const auto sheet = [n](const std::vector<V>& p) {
+    std::vector<std::array<V, 3>> tris;
+    for (int i = 0; i + 1 < n; ++i)
+      for (int j = 0; j + 1 < n; ++j) {
+        const int a = i * n + j, b = a + 1, c = a + n, d = c + 1;
+        tris.push_back({p[a], p[b], p[d]});
+        tris.push_back({p[a], p[d], p[c]});
+      }
+    return tris;
+  };
+  const mm::TriangleDistanceTree first(sheet(grid));
+  const mm::TriangleDistanceTree own(sheet(moved)), reused(sheet(moved), first.layout());
+  EXPECT_EQ(reused.layout(), first.layout());
+  int differ = 0, within_differ = 0;
+  int h_own = -1, h_reused = -1;
+  for (int k = 0; k < 20000; ++k) {
+    const V q(40 * (u(rng) + 1) / 2, 40 * (u(rng) + 1) / 2, 4 * u(rng));
+    const double a = own.squared_distance(q, h_own), b = reused.squared_distance(q, h_reused);
+    if ((!same_bits(a, b) || own.triangle_of(h_own) != reused.triangle_of(h_reused)) && ++differ <= 5)
+      ADD_FAILURE() << "query " << k << ": " << a << " vs " << b << " on the reused layout";
+    const double r = std::sqrt(a) * (k % 2 == 0 ? 0.999 : 1.001);
+    int w1 = -1, w2 = -1;
+    if (own.within(q, r, w1) != reused.within(q, r, w2)) ++within_differ;
+  }
+  EXPECT_EQ(differ, 0);
+  EXPECT_EQ(within_differ, 0);
+  auto fewer = sheet(moved);
+  fewer.pop_back();
+  EXPECT_THROW(mm::TriangleDistanceTree(fewer, first.layout()), std::invalid_argument);
+}
+
 }  // namespace

@@ -2,10 +2,13 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <deque>
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <string>
 
@@ -18,6 +21,7 @@ namespace {
 struct Tri {
   Eigen::Vector3d a, b, c;
   double area;
+  std::array<int, 3> corners;  // vertex indices of a, b, c
 };
 
 // Fan triangles of positive area; degenerate ones add nothing to a surface and would only
@@ -33,7 +37,7 @@ std::vector<Tri> triangles(const Mesh& mesh) {
         throw InputError("quality", "face " + std::to_string(f) + " has a vertex index out of range");
     for (std::size_t k = 1; k + 1 < face.size(); ++k) {
       Tri t{mesh.points.row(face[0]).transpose(), mesh.points.row(face[k]).transpose(),
-            mesh.points.row(face[k + 1]).transpose(), 0};
+            mesh.points.row(face[k + 1]).transpose(), 0, {face[0], face[k], face[k + 1]}};
       t.area = 0.5 * (t.b - t.a).cross(t.c - t.a).norm();
       if (t.area > 0) out.push_back(t);
     }
@@ -129,13 +133,18 @@ std::vector<int> spatial_order(const std::vector<Eigen::Vector3d>& points) {
 
 namespace {
 
-// The closest-point tree of a surface's triangles (triangles(mesh)).
-std::unique_ptr<TriangleDistanceTree> tree_of(const std::vector<Tri>& tris) {
+// The closest-point tree of a surface's triangles (triangles(mesh)), on `layout` if given.
+std::unique_ptr<TriangleDistanceTree> tree_of(const std::vector<Tri>& tris,
+                                              std::shared_ptr<const BvhLayout> layout = nullptr) {
   std::vector<std::array<Eigen::Vector3d, 3>> corners;
   corners.reserve(tris.size());
   for (const Tri& t : tris) corners.push_back({t.a, t.b, t.c});
-  return std::make_unique<TriangleDistanceTree>(corners);
+  return std::make_unique<TriangleDistanceTree>(corners, std::move(layout));
 }
+
+// How many surfaces measured against a part have their trees' layouts remembered
+// (MeasuredSurface::Impl::tree_for): the stream search measures two or three polyhedra in turn.
+constexpr std::size_t kRememberedLayouts = 4;
 
 std::vector<Eigen::Vector3d> samples_of(const std::vector<Tri>& tris, const Mesh& mesh, const SamplingParams& params) {
   std::vector<Eigen::Vector3d> points = sample_triangles(tris, mesh, params.samples, params.seed, params.include_vertices);
@@ -240,6 +249,33 @@ struct MeasuredSurface::Impl {
   mutable std::unique_ptr<TriangleDistanceTree> tree;
   mutable std::vector<Eigen::Vector3d> samples;
   mutable std::vector<int> order;  // spatial_order(samples)
+  // Layouts of the trees of the last surfaces measured against this one, by their triangles'
+  // vertex indices, most recent first: candidates of one control polyhedron (its streams at
+  // several grids, snapped, descended) decode to moves of the same refined triangles, and a
+  // tree on a remembered layout skips the split (TriangleDistanceTree's answers do not depend
+  // on it).
+  mutable std::mutex layouts_mutex;
+  mutable std::deque<std::pair<std::vector<std::array<int, 3>>, std::shared_ptr<const BvhLayout>>> layouts;
+  std::unique_ptr<TriangleDistanceTree> tree_for(const std::vector<Tri>& tris) const {
+    std::vector<std::array<int, 3>> key(tris.size());
+    for (std::size_t i = 0; i < tris.size(); ++i) key[i] = tris[i].corners;
+    std::shared_ptr<const BvhLayout> known;
+    {
+      const std::lock_guard<std::mutex> lock(layouts_mutex);
+      for (const auto& [k, layout] : layouts)
+        if (k == key) {
+          known = layout;
+          break;
+        }
+    }
+    auto made = tree_of(tris, known);
+    if (!known) {
+      const std::lock_guard<std::mutex> lock(layouts_mutex);
+      layouts.emplace_front(std::move(key), made->layout());
+      if (layouts.size() > kRememberedLayouts) layouts.pop_back();
+    }
+    return made;
+  }
   void build() const {
     std::call_once(built, [this] {
       const std::vector<Tri> tris = triangles(mesh);
@@ -283,29 +319,46 @@ const std::vector<int>& MeasuredSurface::sample_order() const {
 namespace {
 
 // A surface b against a measured part: both directions of a measurement, b's tree and samples
-// made from b's triangles (triangles(b), computed once by the caller; they are checked before
-// the part is built, as when the part's tree was built per measurement). in_passes runs the
-// part's side and b's side of each pass in turn, until one fails.
+// made from b's triangles (triangles(b), computed by the caller: they are checked before the
+// part is built, as when the part's tree was built per measurement). in_passes runs the
+// part's side and b's side of each pass in turn, until one fails. b's tree and samples are made
+// when a direction first needs them: a candidate turned away by the part's samples in the first
+// pass needs none of b's samples.
 struct Against {
-  Against(const MeasuredSurface& a, const Mesh& b, const std::vector<Tri>& b_tris)
-      : b_tree(tree_of(b_tris)),
-        ab(a.samples(), *b_tree, &a.sample_order()),
-        b_samples(samples_of(b_tris, b, other_direction(a.params()))),
-        ba(b_samples, a.tree()) {}
+  Against(const MeasuredSurface& a, const Mesh& b, std::vector<Tri> b_tris) : a_(a), b_(b), b_tris_(std::move(b_tris)) {}
   template <class Pass>
   bool in_passes(const std::vector<std::size_t>& strides, Pass pass) {
     std::size_t coarser = 0;
     for (std::size_t stride : strides) {
-      if (!pass(ab, stride, coarser) || !pass(ba, stride, coarser)) return false;
+      if (!pass(ab(), stride, coarser) || !pass(ba(), stride, coarser)) return false;
       coarser = stride;
     }
     return true;
   }
+  // The part's samples to b.
+  Direction& ab() {
+    if (!ab_) {
+      b_tree_ = a_.impl().tree_for(b_tris_);
+      ab_.emplace(a_.samples(), *b_tree_, &a_.sample_order());
+    }
+    return *ab_;
+  }
+  // b's samples to the part.
+  Direction& ba() {
+    if (!ba_) {
+      b_samples_ = samples_of(b_tris_, b_, other_direction(a_.params()));
+      ba_.emplace(b_samples_, a_.tree());
+    }
+    return *ba_;
+  }
 
-  std::unique_ptr<TriangleDistanceTree> b_tree;
-  Direction ab;  // the part's samples to b
-  std::vector<Eigen::Vector3d> b_samples;
-  Direction ba;  // b's samples to the part
+ private:
+  const MeasuredSurface& a_;
+  const Mesh& b_;
+  const std::vector<Tri> b_tris_;
+  std::unique_ptr<TriangleDistanceTree> b_tree_;
+  std::vector<Eigen::Vector3d> b_samples_;
+  std::optional<Direction> ab_, ba_;
 };
 
 }  // namespace
@@ -351,7 +404,9 @@ std::optional<SurfaceDistance> surface_distance_within(const Mesh& a, const Mesh
 
 bool surface_within(const MeasuredSurface& measured, const Mesh& b, double limit) {
   Against m(measured, b, triangles(b));
-  if (std::isinf(limit)) return true;
+  // Everything is within an infinite limit; both sides are still made, so bad input fails here
+  // as in a measurement.
+  if (std::isinf(limit)) return m.ab(), m.ba(), true;
   return m.in_passes(kPasses, [&](Direction& d, std::size_t stride, std::size_t coarser) {
     return d.within(stride, coarser, limit, measured.diagonal());
   });
@@ -366,8 +421,8 @@ std::optional<SurfaceDistance> surface_distance_within(const MeasuredSurface& me
                      return d.measure(stride, coarser, limit, s.diagonal);
                    }))
     return std::nullopt;
-  s.a_to_b = m.ab.stats();
-  s.b_to_a = m.ba.stats();
+  s.a_to_b = m.ab().stats();
+  s.b_to_a = m.ba().stats();
   s.hausdorff = std::max(s.a_to_b.max, s.b_to_a.max);
   s.rms = std::max(s.a_to_b.rms, s.b_to_a.rms);
   s.mean = std::max(s.a_to_b.mean, s.b_to_a.mean);

@@ -69,6 +69,10 @@ class MeasuredSurface {
   // through space, so that each query starts from a nearby sample's answer.
   const std::vector<int>& sample_order() const;
   struct Impl;
+  // For the measurement code (surface_distance.cpp): besides the above, the layouts of the trees
+  // of the last few surfaces measured against this one, so a surface that moves the same
+  // triangles a little (a control polyhedron's streams at several grids) reuses its tree's split.
+  const Impl& impl() const { return *impl_; }
 
  private:
   std::shared_ptr<const Impl> impl_;

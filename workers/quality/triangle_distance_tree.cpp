@@ -11,6 +11,7 @@
 #include <limits>
 #include <numeric>
 #include <stdexcept>
+#include <string>
 
 namespace mm {
 namespace {
@@ -66,6 +67,7 @@ struct TriangleDistanceTree::Impl {
   std::vector<Tri> tris;     // leaf order
   std::vector<int> index;    // per leaf position, the triangle's index in the constructor's list
   std::vector<Node> nodes;   // pre-order
+  std::shared_ptr<const BvhLayout> layout;  // the split the nodes were made from
   double root_lo[3], root_hi[3];
   double eps = 0;            // distance slack of the skip tests (see closest())
 
@@ -88,19 +90,32 @@ struct TriangleDistanceTree::Impl {
 };
 
 TriangleDistanceTree::TriangleDistanceTree(const std::vector<std::array<Eigen::Vector3d, 3>>& triangles)
+    : TriangleDistanceTree(triangles, nullptr) {}
+
+TriangleDistanceTree::TriangleDistanceTree(const std::vector<std::array<Eigen::Vector3d, 3>>& triangles,
+                                           std::shared_ptr<const BvhLayout> given)
     : impl_(std::make_unique<Impl>()) {
   const int n = static_cast<int>(triangles.size());
   if (n == 0) throw std::invalid_argument("TriangleDistanceTree: no triangles");
-  std::vector<Eigen::Vector3d> centroid(static_cast<size_t>(n));
+  if (given && given->order.size() != triangles.size())
+    throw std::invalid_argument("TriangleDistanceTree: a layout for " + std::to_string(given->order.size()) +
+                                " triangles given " + std::to_string(n));
   std::vector<Eigen::AlignedBox3d> box(static_cast<size_t>(n));
   Eigen::AlignedBox3d all;
   for (int t = 0; t < n; ++t) {
-    const auto& tr = triangles[static_cast<size_t>(t)];
-    centroid[static_cast<size_t>(t)] = (tr[0] + tr[1] + tr[2]) / 3;
-    for (const auto& v : tr) box[static_cast<size_t>(t)].extend(v);
+    for (const auto& v : triangles[static_cast<size_t>(t)]) box[static_cast<size_t>(t)].extend(v);
     all.extend(box[static_cast<size_t>(t)]);
   }
-  BvhLayout layout = binned_sah_layout(centroid, box, kLeafSize);
+  if (!given) {
+    std::vector<Eigen::Vector3d> centroid(static_cast<size_t>(n));
+    for (int t = 0; t < n; ++t) {
+      const auto& tr = triangles[static_cast<size_t>(t)];
+      centroid[static_cast<size_t>(t)] = (tr[0] + tr[1] + tr[2]) / 3;
+    }
+    given = std::make_shared<const BvhLayout>(binned_sah_layout(centroid, box, kLeafSize));
+  }
+  impl_->layout = given;
+  const BvhLayout& layout = *given;
   const std::vector<int>& order = layout.order;
   impl_->nodes.reserve(layout.nodes.size());
   for (const auto& nd : layout.nodes) {
@@ -138,6 +153,8 @@ TriangleDistanceTree::TriangleDistanceTree(const std::vector<std::array<Eigen::V
 }
 
 TriangleDistanceTree::~TriangleDistanceTree() = default;
+
+std::shared_ptr<const BvhLayout> TriangleDistanceTree::layout() const { return impl_->layout; }
 
 int TriangleDistanceTree::triangle_of(int hint) const {
   if (hint < 0 || hint >= static_cast<int>(impl_->index.size()))

@@ -12,6 +12,8 @@
 #include <memory>
 #include <vector>
 
+#include "quality/bvh_layout.h"
+
 namespace mm {
 
 class TriangleDistanceTree {
@@ -19,6 +21,15 @@ class TriangleDistanceTree {
   // Triangles as corner triples (at least one; degenerate ones should be left out by the caller,
   // as CGAL's tree was given them).
   explicit TriangleDistanceTree(const std::vector<std::array<Eigen::Vector3d, 3>>& triangles);
+  // The same on the layout of another tree over as many triangles (layout()): its boxes are
+  // computed for these corners, its split kept. Every answer is the same as with the tree's own
+  // layout (a distance is the minimum over all triangles, ties go to the first in the list);
+  // only the work per query may differ. For surfaces that differ by small moves of the same
+  // triangles (a control polyhedron's streams at several grids), the split costs more than the
+  // queries of a rejected candidate. Throws std::invalid_argument when the counts differ.
+  TriangleDistanceTree(const std::vector<std::array<Eigen::Vector3d, 3>>& triangles,
+                       std::shared_ptr<const BvhLayout> layout);
+  std::shared_ptr<const BvhLayout> layout() const;
   ~TriangleDistanceTree();
   TriangleDistanceTree(const TriangleDistanceTree&) = delete;
   TriangleDistanceTree& operator=(const TriangleDistanceTree&) = delete;
