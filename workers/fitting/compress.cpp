@@ -69,6 +69,18 @@ constexpr double kReweight = 0.3;
 // bytes, every part within the tolerance; the reweighting alone 4,772 vertices (uncapped) for no
 // less time, coarse rounds alone 5,867 vertices (docs/compression.md, "Reweighted fits").
 
+// Without coarsening (protect jobs), two savings of fit time for a few bytes, measured together
+// over the nine bench parts and seeds 1-3 (protect path, docs/compression.md, "Fewer rounds and
+// fits on the protect path"): warm rounds fit no rail-quad variant (fit_rounds), and the rounds
+// stop bisecting once the gap is a sixth of the vertices that met the tolerance, not a tenth
+// (kBisectFraction). Fit time 24.89 -> 17.06 s (-31 %), control vertices 4,798 -> 5,152 (+7 %),
+// stream bytes 12,968 -> 13,677 (+5.5 %), every run within the tolerance; each alone (runs two
+// at a time): -16 % time for +3.3 % bytes (quads), -14 % for +3.6 % (bisection), both -24 %
+// against the same base. More control vertices also give the
+// watermark more coefficients to spread its bits over. With coarsening the rounds are unchanged
+// (it shrinks the polyhedron afterwards; `meshmark compress`'s streams stay byte for byte).
+constexpr int kBisectFraction = 6;
+
 // Where a warm round starts its control vertices, per input vertex: the last round's fitted
 // position, if that vertex was a control vertex there.
 struct WarmStart {
@@ -322,25 +334,26 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     // each is a candidate. Not when the triangles met the tolerance: the quads would only add a
     // candidate of as many vertices, whose stream is larger (version 3 codes a quad for about
     // twice a triangle's bits), and the next round is a bisection step that needs no errors to
-    // steer.
+    // steer. Nor in warm rounds (`quads_with` null): near the tolerance a second fit of the
+    // round for the few bytes above (kBisectFraction).
     const Points from_part = control.mesh.points;
-    const auto fit_variants = [&](const Points& start, const FitOptions& with, const FitOptions& quads_with) {
+    const auto fit_variants = [&](const Points& start, const FitOptions& with, const FitOptions* quads_with) {
       const bool steer_only = with.levels != o.levels;
       control.mesh.points = start;
       FitResult triangles = fit_control_points(control.mesh, target, with);
       const Points fitted = triangles.control.points;
       bool met = consider(std::move(triangles), steer_only);
-      if (o.rail_quads && !met) {
+      if (o.rail_quads && quads_with && !met) {
         Mesh quads = pair_rail_quads(control.mesh);
         if (quads.num_faces() != control.mesh.num_faces()) {
           quads.points = fitted;
           // 3 iterations instead of 6 gave streams about as small over 17 parts and 3 seeds
           // (geometric mean 301.7 against 300.1 bytes) in 25 % less fit time, but fandisk_quads'
           // polyhedron then lost its mark in a welded STL copy (docs/compression.md). The caller
-          // gives `quads_with` the full iteration count in warm rounds too (the quads at 3 there:
-          // 14,189 bytes over the bench parts and seeds against 13,859; docs/compression.md,
-          // "Warm rounds").
-          met = consider(fit_control_points(quads, target, quads_with), steer_only);
+          // gives `quads_with` the full iteration count after a warm start too (the quads at 3 in
+          // warm rounds, when those had quads: 14,189 bytes over the bench parts and seeds against
+          // 13,859; docs/compression.md, "Warm rounds").
+          met = consider(fit_control_points(quads, target, *quads_with), steer_only);
         }
       }
       return met;
@@ -353,25 +366,26 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     if (warm) {
       Points start = from_part;
       warm_start.apply(start, control.source);
-      fits = fit_variants(start, warm_fit, fit);
+      fits = fit_variants(start, warm_fit, nullptr);
       // More vertices and no closer than the round before: fitted again from the part, and the
       // better fit counts (the hemisphere's warm rounds came out worse than its cold ones).
-      if (!fits && n > out.round_vertices.back() && rel >= out.round_errors.back()) fits = fit_variants(from_part, fit, fit);
+      if (!fits && n > out.round_vertices.back() && rel >= out.round_errors.back())
+        fits = fit_variants(from_part, fit, nullptr);
     } else if (!o.coarsen && o.levels > 1) {
       FitOptions coarse = fit;
       coarse.levels = o.levels - 1;
-      fit_variants(from_part, coarse, coarse);
+      fit_variants(from_part, coarse, &coarse);
       fits = false;
       level = coarse.levels;
       // Within the tolerance, or the last round with no full-level fit yet to give as the result.
       if (rel <= o.tolerance || (!have && round + 1 == o.max_rounds)) {
         const Points start = steering;
         result_error.clear();
-        fits = fit_variants(start, warm_fit, fit);
+        fits = fit_variants(start, warm_fit, &fit);
         level = o.levels;
       }
     } else {
-      fits = fit_variants(from_part, fit, fit);
+      fits = fit_variants(from_part, fit, &fit);
     }
     if (!o.coarsen) warm_start.remember(steering, control.source, mesh.num_vertices());
     out.round_vertices.push_back(n);
@@ -385,8 +399,9 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
       failed_n = std::max(failed_n, n);
     }
     if (fit_n > 0) {
-      // Bisect while it could still save a tenth of the vertices.
-      if (failed_n == 0 || fit_n - failed_n <= std::max(4, fit_n / 10)) break;
+      // Bisect while it could still save a tenth of the vertices (a sixth without coarsening:
+      // kBisectFraction).
+      if (failed_n == 0 || fit_n - failed_n <= std::max(4, fit_n / (o.coarsen ? 10 : kBisectFraction))) break;
       if (!fits) raise_importance(co.importance, result_error, o.tolerance * target.diagonal());
       co.target_vertices = (failed_n + fit_n) / 2;
       continue;
