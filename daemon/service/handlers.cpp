@@ -387,7 +387,15 @@ Aligned align_to(const std::string& polyhedron_blob, const jobs::PreparedAsset& 
         contexts ? contexts->get(polyhedron_blob, build) : std::make_shared<const ResyncContext>(build());
     ResyncOptions o;
     o.source = name;
-    Resynchronized r = jobs::resynchronize_suspect(*ctx, suspect, o);
+    // Copies are issued in the part's units (protect undoes the normalisation), so a copy leaked
+    // as issued lies in the asset's frame once normalised, where the resynchronisation's unmoved
+    // pairing explains it exactly. Given in the part's units, every suspect was aligned by a
+    // fitted similarity instead, which on a part symmetric about an axis may settle on a
+    // symmetric pose: abc7's issued STL copies were paired exactly (residual 4e-9) but permuted,
+    // and half of them were not attributed. A moved copy is aligned as before.
+    Mesh in_frame = suspect;
+    apply(asset.normalization, in_frame.points);
+    Resynchronized r = jobs::resynchronize_suspect(*ctx, in_frame, o);
     std::string built;
     for (int l = 0; l <= ctx->max_level(); ++l) built += ctx->level_built(l) ? std::to_string(l) : "-";
     spdlog::debug("resync {} to polyhedron {}: {} level {}; context {:.1f} MB, levels {} built", name,
