@@ -237,7 +237,7 @@ TEST(CliMark, NoisyWeldedCopyOfAThinPartIsPairedAfterTheMatchingRounds) {
 // Issued copies of the chamfered block (a symmetric part whose 66-vertex polyhedron carries a
 // mark of about half a per cent of the diagonal) saved as STL, order lost, nothing else: the
 // mark swaps a few of the mutual pairs with the original's refined vertices, and until the
-// resynchronisation dropped pairs out of line with the solve, 5 of these 10 keys' copies decoded
+// resynchronisation left pairs out of line with the solve out of it, 5 of these 10 keys' copies decoded
 // a wrong message (residual 5e-4 of the diagonal instead of float precision).
 TEST(CliMark, WeldedStlCopiesOfASymmetricPartAreResynchronisedExactly) {
   StreamOriginal o;
