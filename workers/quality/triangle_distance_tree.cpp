@@ -65,9 +65,10 @@ double box2(const double* lo, const double* hi, const double* p) {
 
 struct TriangleDistanceTree::Impl {
   std::vector<Tri> tris;     // leaf order
-  std::vector<int> index;    // per leaf position, the triangle's index in the constructor's list
   std::vector<Node> nodes;   // pre-order
-  std::shared_ptr<const BvhLayout> layout;  // the split the nodes were made from
+  // The split the nodes were made from; its order gives, per leaf position, the triangle's index
+  // in the constructor's list.
+  std::shared_ptr<const BvhLayout> layout;
   double root_lo[3], root_hi[3];
   double eps = 0;            // distance slack of the skip tests (see closest())
 
@@ -130,7 +131,6 @@ TriangleDistanceTree::TriangleDistanceTree(const std::vector<std::array<Eigen::V
   // minimum is skipped (the answer is the minimum over all triangles, as CGAL's).
   const double magnitude = std::max(all.max().cwiseAbs().maxCoeff(), all.min().cwiseAbs().maxCoeff());
   impl_->eps = 1e-9 * std::max({(all.max() - all.min()).norm(), magnitude, std::numeric_limits<double>::min()});
-  impl_->index = order;
   impl_->tris.resize(static_cast<size_t>(n));
   for (int k = 0; k < n; ++k) {
     const auto& tr = triangles[static_cast<size_t>(order[static_cast<size_t>(k)])];
@@ -157,9 +157,9 @@ TriangleDistanceTree::~TriangleDistanceTree() = default;
 std::shared_ptr<const BvhLayout> TriangleDistanceTree::layout() const { return impl_->layout; }
 
 int TriangleDistanceTree::triangle_of(int hint) const {
-  if (hint < 0 || hint >= static_cast<int>(impl_->index.size()))
+  if (hint < 0 || hint >= static_cast<int>(impl_->layout->order.size()))
     throw std::out_of_range("TriangleDistanceTree::triangle_of: no such position");
-  return impl_->index[static_cast<size_t>(hint)];
+  return impl_->layout->order[static_cast<size_t>(hint)];
 }
 
 bool TriangleDistanceTree::within(const Eigen::Vector3d& q, double r, int& hint) const {
@@ -216,6 +216,7 @@ double TriangleDistanceTree::squared_distance(const Eigen::Vector3d& q, int& hin
   const K::Compute_squared_distance_3 sqd;
   double best2 = std::numeric_limits<double>::infinity();
   int best = -1;
+  const std::vector<int>& index = im.layout->order;  // leaf position -> constructor's list
   // The value of a triangle: the closer of CGAL's projection onto it and its first vertex (CGAL
   // started from the nearest first vertex, its kd-tree's hint, and kept it unless a projection
   // came strictly closer... or as close: both give the same number).
@@ -226,7 +227,7 @@ double TriangleDistanceTree::squared_distance(const Eigen::Vector3d& q, int& hin
     const double v = std::min(v0, x);
     // Of equally close triangles the first in the constructor's list, wherever the search
     // started: none is skipped (the skip tests allow the slack), so the answer is canonical.
-    if (v < best2 || (v == best2 && best >= 0 && im.index[static_cast<size_t>(t)] < im.index[static_cast<size_t>(best)]))
+    if (v < best2 || (v == best2 && best >= 0 && index[static_cast<size_t>(t)] < index[static_cast<size_t>(best)]))
       best2 = v, best = t;
   };
   // Skip bound: a triangle or box farther than sqrt(best2) + eps cannot hold a closer answer.
