@@ -109,6 +109,22 @@ TEST(ClosestPointBvh, MatchesBruteForceBeforeAndAfterRefit) {
   expect_matches_brute_force(s, tri, seg, rng);
 }
 
+// The fit orders its queries by their hints' leaf positions: every triangle needs its own one.
+TEST(ClosestPointBvh, LeafPositionsNumberTheTrianglesOnce) {
+  std::mt19937 rng(20261203);
+  const Soup s = wavy_grid(17, rng);
+  const TriangleBvh tri(s.points, s.triangles);
+  ASSERT_EQ(tri.size(), static_cast<int>(s.triangles.size()));
+  std::vector<int> seen(s.triangles.size(), 0);
+  for (int t = 0; t < tri.size(); ++t) {
+    const int at = tri.leaf_position(t);
+    ASSERT_GE(at, 0);
+    ASSERT_LT(at, tri.size());
+    ++seen[static_cast<size_t>(at)];
+  }
+  for (int n : seen) EXPECT_EQ(n, 1);
+}
+
 TEST(ClosestPointBvh, DegenerateTrianglesAreNeverReported) {
   Points p(4, 3);
   p << 0, 0, 0, 1, 0, 0, 2, 0, 0, 0, 1, 0;

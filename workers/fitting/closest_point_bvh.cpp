@@ -162,6 +162,7 @@ class Tree {
   }
 
   bool empty() const { return regular_ == 0; }
+  int slot_of(int id) const { return slot_of_[static_cast<size_t>(id)]; }
 
   void refit(const Points& points) {
     regular_ = 0;
@@ -286,6 +287,7 @@ TriangleBvh::TriangleBvh(const Points& points, std::vector<std::array<int, 3>> t
 TriangleBvh::~TriangleBvh() = default;
 void TriangleBvh::refit(const Points& points) { impl_->tree.refit(points); }
 bool TriangleBvh::empty() const { return impl_->tree.empty(); }
+int TriangleBvh::leaf_position(int t) const { return impl_->tree.slot_of(t); }
 
 TriangleHit TriangleBvh::closest(const Eigen::Vector3d& q, int start_triangle) const {
   TriangleHit h;

@@ -35,6 +35,10 @@ class TriangleBvh {
   // through ties.
   TriangleHit closest(const Eigen::Vector3d& q, int start_triangle) const;
   const std::array<int, 3>& triangle(int t) const { return triangles_[static_cast<size_t>(t)]; }
+  int size() const { return static_cast<int>(triangles_.size()); }
+  // Where triangle t sits in the tree's leaf order (0..size()-1): queries made in this order
+  // of their answers' triangles walk the tree's memory in step (no answer changes).
+  int leaf_position(int t) const;
   struct Impl;
 
  private:

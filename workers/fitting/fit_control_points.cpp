@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numeric>
 #include <random>
 #include <set>
 #include <stdexcept>
@@ -419,6 +420,28 @@ struct Hints {
   std::vector<SegmentHit> on_crease;    // per target crease sample: hit on the refined creases
 };
 
+// The order to make `count` queries in: by where their hints' triangles sit in the tree's leaf
+// order, so consecutive queries read the same nodes and triangles (the search waits on memory
+// more than on arithmetic); queries without a hint last, in index order. Each query's answer
+// depends only on its point and hint, so the order changes no answer.
+std::vector<int> query_order(const std::vector<TriangleHit>* hints, size_t count, const TriangleBvh& tree) {
+  std::vector<int> order(count);
+  if (!hints || hints->size() != count) {
+    std::iota(order.begin(), order.end(), 0);
+    return order;
+  }
+  const int positions = tree.size();
+  std::vector<int> start(static_cast<size_t>(positions) + 2, 0);  // counting sort; slot `positions`: no hint
+  const auto key = [&](size_t k) {
+    const int t = (*hints)[k].triangle;
+    return t >= 0 && t < positions ? tree.leaf_position(t) : positions;
+  };
+  for (size_t k = 0; k < count; ++k) ++start[static_cast<size_t>(key(k)) + 1];
+  for (size_t i = 1; i < start.size(); ++i) start[i] += start[i - 1];
+  for (size_t k = 0; k < count; ++k) order[static_cast<size_t>(start[static_cast<size_t>(key(k))]++)] = static_cast<int>(k);
+  return order;
+}
+
 Correspondences correspond(const Points& R, const TriangleBvh& surf, const SegmentBvh& crease,
                            const std::vector<std::pair<int, int>>& refined_creases,
                            const TargetSamples& samples, const TriangleBvh& target_tris,
@@ -439,16 +462,25 @@ Correspondences correspond(const Points& R, const TriangleBvh& surf, const Segme
   }
   std::vector<char> on_crease(R.rows(), 0);
   for (auto [a, b] : refined_creases) on_crease[a] = on_crease[b] = 1;
-  if (!surf.empty())
+  if (!surf.empty()) {
+    std::vector<TriangleHit> on_surface(samples.surface.size());
+    for (const int k : query_order(hints ? &hints->on_surface : nullptr, samples.surface.size(), surf))
+      on_surface[static_cast<size_t>(k)] =
+          surf.closest(samples.surface[static_cast<size_t>(k)], hints ? hints->on_surface[static_cast<size_t>(k)].triangle : -1);
     for (size_t k = 0; k < samples.surface.size(); ++k) {
       const auto& p = samples.surface[k];
-      const TriangleHit h = surf.closest(p, hints ? hints->on_surface[k].triangle : -1);
-      if (hints) hints->on_surface[k] = h;
+      const TriangleHit& h = on_surface[k];
       const auto& t = surf.triangle(h.triangle);
       c.add(std::array<std::pair<int, double>, 3>{{{t[0], h.barycentric[0]}, {t[1], h.barycentric[1]}, {t[2], h.barycentric[2]}}},
             h.triangle, p, 1.0, h.distance, true);
     }
-  if (!target_tris.empty())
+    if (hints) hints->on_surface = std::move(on_surface);
+  }
+  if (!target_tris.empty()) {
+    std::vector<TriangleHit> on_target(static_cast<size_t>(R.rows()));
+    for (const int v : query_order(hints ? &hints->on_target : nullptr, static_cast<size_t>(R.rows()), target_tris))
+      on_target[static_cast<size_t>(v)] =
+          target_tris.closest(R.row(v).transpose(), hints ? hints->on_target[static_cast<size_t>(v)].triangle : -1);
     for (Eigen::Index v = 0; v < R.rows(); ++v) {
       if (with_creases && on_crease[v] && !target_creases.empty()) {
         const SegmentHit h =
@@ -457,11 +489,12 @@ Correspondences correspond(const Points& R, const TriangleBvh& surf, const Segme
         c.add(std::array<std::pair<int, double>, 1>{{{static_cast<int>(v), 1.0}}}, static_cast<int>(v), h.point, o.crease_weight,
               h.distance, false);
       }
-      const TriangleHit h = target_tris.closest(R.row(v).transpose(), hints ? hints->on_target[v].triangle : -1);
-      if (hints) hints->on_target[v] = h;
+      const TriangleHit& h = on_target[static_cast<size_t>(v)];
       c.add(std::array<std::pair<int, double>, 1>{{{static_cast<int>(v), 1.0}}}, static_cast<int>(v), h.point, 1.0,
             h.distance, true);
     }
+    if (hints) hints->on_target = std::move(on_target);
+  }
   if (with_creases && !crease.empty())
     for (size_t k = 0; k < samples.crease.size(); ++k) {
       const auto& p = samples.crease[k];
