@@ -76,6 +76,9 @@ TEST(PreparedAsset, CacheKeyNamesEveryCompressionOption) {
     change(q);
     EXPECT_NE(q.key(), k);
   }
+  // The rounds' schedule comes from compress.cpp's constants, and names them.
+  EXPECT_NE(k.find(rounds_schedule_key(p.compression)), std::string::npos) << k;
+  EXPECT_NE(rounds_schedule_key(p.compression).find("first-warm-growth="), std::string::npos);
   PrepareParams cap;
   cap.max_control_vertices = 2000;  // refuses, never changes a result
   EXPECT_EQ(cap.key(), k);

@@ -5,6 +5,7 @@
 #include <memory>
 #include <numeric>
 #include <optional>
+#include <sstream>
 #include <string>
 
 #include "codec/stream.h"
@@ -80,6 +81,21 @@ constexpr double kReweight = 0.3;
 // watermark more coefficients to spread its bits over. With coarsening the rounds are unchanged
 // (it shrinks the polyhedron afterwards; `meshmark compress`'s streams stay byte for byte).
 constexpr int kBisectFraction = 6;
+
+// Into the first full-level round (without coarsening): after a coarse round within kWarmWithin
+// times the tolerance, the vertices grow by at least kFirstWarmGrowth (1.15 otherwise). At 1.15
+// the first full-level round missed by a few percent in 5 of 27 runs (rocker at 413 vertices
+// 0.52 %, abc6 at 57 0.52 %, abc8 at 214 0.56 %), and a second full-level fit costs more than
+// the extra vertices. And coarse rounds' misses do not bound the bisection: their errors are
+// the coarser surface's, and the bisection rounds down towards them mostly missed again
+// (bracket-3: 82 vertices at 2.6 %, 164 met, then 123 and 143 missed; rocker: 333 at 0.88 %,
+// 443 met, then 388 missed), a full-level fit each. Measured over the nine bench parts and
+// seeds 1-3 (protect path, docs/compression.md, "The first full-level round"): fit time 15.25
+// -> 12.23 s (-20 %), control vertices 5,152 -> 5,381, stream bytes 13,677 -> 13,861 (+1.3 %),
+// every run within the tolerance, 26 of 27 fits under 1 s (25); a floor of 1.19 with coarse
+// misses bounding the bisection 14.46 s for 13,852 bytes, far coarse misses still bounding it
+// 15.52 s for 13,688.
+constexpr double kFirstWarmGrowth = 1.25;
 
 // Where a warm round starts its control vertices, per input vertex: the last round's fitted
 // position, if that vertex was a control vertex there.
@@ -200,6 +216,18 @@ Features features_of(const Mesh& unit_box_mesh, const CompressOptions& o) {
 }  // namespace
 
 std::vector<double> fallback_crease_angles() { return {30.0, 25.0, 20.0}; }
+
+std::string rounds_schedule_key(const CompressOptions& o) {
+  if (o.coarsen) return ";coarsen=1";
+  const auto number = [](double x) {
+    std::ostringstream s;
+    s << x;
+    return s.str();
+  };
+  return ";rounds=coarse-warm;warm-iterations=" + std::to_string(kWarmIterations) + ";warm-within=" + number(kWarmWithin) +
+         ";warm-quads=0;bisect=" + std::to_string(kBisectFraction) + ";first-warm-growth=" + number(kFirstWarmGrowth) +
+         ";fit=reweighted-" + number(kReweight);
+}
 
 bool stopped_at_budget(const CompressResult& r, const CompressOptions& o) {
   return r.control.num_vertices() >= o.max_vertices * 9 / 10;
@@ -395,8 +423,8 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     if (fits) {
       out.tolerance_met = true;
       fit_n = fit_n == 0 ? n : std::min(fit_n, n);
-    } else if (fit_n == 0 || n < fit_n) {
-      failed_n = std::max(failed_n, n);
+    } else if ((fit_n == 0 || n < fit_n) && level == o.levels) {
+      failed_n = std::max(failed_n, n);  // (not a coarse round's miss: kFirstWarmGrowth)
     }
     if (fit_n > 0) {
       // Bisect while it could still save a tenth of the vertices (a sixth without coarsening:
@@ -414,7 +442,9 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     // vertices went astray in its decimation, and is no measure of how many more are needed
     // (flanged_cylinder: 68 vertices at 0.66 %, then 79 at 1.64 % grew to 144).
     const double grow_rel = have ? std::min(rel, best.stats.hausdorff / best.stats.diagonal) : rel;
-    const double grow = std::clamp(std::sqrt(grow_rel / o.tolerance), 1.15, 2.0);
+    const bool next_warm = !o.coarsen && rel <= kWarmWithin * o.tolerance;
+    const double least = next_warm && level != o.levels ? kFirstWarmGrowth : 1.15;
+    const double grow = std::clamp(std::sqrt(grow_rel / o.tolerance), least, 2.0);
     // From the vertices the round had, where the decimation stopped above its target (corners
     // and crease floors): grown from the target, abc8's second round had 106 vertices to the
     // first's 92 (3.26 % against 3.53 %), a round spent on nearly the same polyhedron.

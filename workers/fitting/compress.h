@@ -126,6 +126,12 @@ CompressResult compress_rounds(const Mesh& mesh, const CompressOptions& options,
                                std::shared_ptr<const CompressState>& state);
 CompressResult coarsen_rounds(const CompressState& state);
 
+// The rounds' schedule `o` runs, as a cache key part built from compress.cpp's constants: a
+// stored polyhedron fitted under another schedule is fitted again (jobs/prepared_asset.cpp).
+// With coarsening ";coarsen=1", else ";rounds=coarse-warm;..." with the warm rounds'
+// iterations, the bisection's fraction, the first full-level round's growth and the reweighting.
+std::string rounds_schedule_key(const CompressOptions& o);
+
 // Crease angles to try in turn when the chosen one misses the tolerance: 30, 25, 20 degrees. A
 // fold a little flatter than the crease angle is smooth to the fit, and the subdivision surface
 // rounds it off by the same distance however many control vertices are spent near it

@@ -141,13 +141,13 @@ std::string PrepareParams::key() const {
   // (before rail quads: no ";quads=rail") and rows whose rounds all started from the part
   // (before warm rounds: no ";rounds=warm", which compress() runs without coarsening) and rows
   // fitted before coarse rounds and the fit's reweighting (";rounds=warm" alone) and rows fitted
-  // before warm rounds lost their rail-quad variant and the bisection stopped at a sixth
-  // (";rounds=coarse-warm;fit=reweighted", where they now give
-  // ";rounds=coarse-warm;warm-quads=0;bisect=6;fit=reweighted", also without coarsening only).
+  // under earlier schedules without coarsening (";rounds=coarse-warm;fit=reweighted", then
+  // ";rounds=coarse-warm;warm-quads=0;bisect=6;fit=reweighted"; now rounds_schedule_key()
+  // spells out compress.cpp's constants, so a change to them fits assets again).
   const CompressOptions& c = compression;
   return "prepare-v2;compress;verify=dense;tolerance=" + shortest(c.tolerance) + ";max_vertices=" + std::to_string(c.max_vertices) +
          ";levels=" + std::to_string(c.levels) + ";angle=" + shortest(c.angle_degrees) +
-         ";max_rounds=" + std::to_string(c.max_rounds) + (c.rail_quads ? ";quads=rail" : "") + (c.coarsen ? ";coarsen=1" : ";rounds=coarse-warm;warm-quads=0;bisect=6;fit=reweighted") +
+         ";max_rounds=" + std::to_string(c.max_rounds) + (c.rail_quads ? ";quads=rail" : "") + rounds_schedule_key(c) +
          (c.seed != 1 ? ";seed=" + std::to_string(c.seed) : "") + fallback_key(fallback_angles) +
          ";basis=dense-kirchhoff";
 }
