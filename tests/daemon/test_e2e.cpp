@@ -509,6 +509,23 @@ TEST_F(E2E, BatchRunUntilEmptyWithoutDaemon) {
   EXPECT_EQ(count_files(drop / "done/protect/alpha"), 1);
   EXPECT_EQ(count_files(drop / "done/protect/beta"), 1);
   EXPECT_EQ(store()->list_copies().size(), 3u);
+  // Each protect job tells how widely its payload is spread, and warns below 4 coefficients a
+  // bit: abc7's 24 control vertices give 2 for the default 32 bits.
+  bool abc7_seen = false;
+  for (const auto& j : store()->list_jobs({})) {
+    const json res = json::parse(j.result_json);
+    ASSERT_TRUE(res.contains("coefficients_per_bit")) << j.result_json;
+    const int spread = res["coefficients_per_bit"].get<int>();
+    EXPECT_EQ(spread, 3 * res["control_vertices"].get<int>() / 32) << j.result_json;
+    EXPECT_EQ(res.contains("warning"), spread < 4) << j.result_json;
+    if (j.payload_json.find("abc7") == std::string::npos) continue;
+    abc7_seen = true;
+    EXPECT_EQ(spread, 2) << j.result_json;
+    ASSERT_TRUE(res.contains("warning"));
+    EXPECT_NE(res["warning"].get<std::string>().find("2 coefficients a bit"), std::string::npos) << j.result_json;
+    EXPECT_NE(log().find("abc7.stl: 24 control vertices spread the 32-bit payload"), std::string::npos) << log();
+  }
+  EXPECT_TRUE(abc7_seen);
 }
 
 }  // namespace
