@@ -38,7 +38,7 @@ constexpr int kAllCopies = 1000000;
 // Spectral coefficients per payload bit, floor(3n / l) (the paper's r), below which a protect job
 // warns: abc7's 24 control vertices spread a 32-bit payload over 2 each, and its copies leaked
 // unmodified, paired exactly, reached a corrected p of only 1e-5.9 to 1e-7 with six customers
-// (under detect.p_threshold's 1e-6 in 1 run of 20); at 16 bits, 4 each, 40 runs of 40 passed
+// (short of detect.p_threshold's 1e-6 in 1 run of 20); at 16 bits, 4 each, 40 runs of 40 passed
 // (tests/daemon/test_e2e.cpp, E2E.CopiesLeakedAsIssuedAreAttributed).
 constexpr int kWeakSpread = 4;
 
@@ -365,19 +365,19 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
     spdlog::warn("job {}: {}", job.id, warning);
   }
   json result{{"asset_id", asset.id},
-                         {"asset_sha256", asset.sha256},
-                         {"customer", customer->name},
-                         {"key_version", ck.version},
-                         {"output", out},
-                         {"output_sha256", out_sha},
-                         {"stream", stream_path},
-                         {"stream_sha256", stream_sha},
-                         {"stream_bytes", files.stream.size()},
-                         {"payload", phex},
-                         {"vertices", mesh.num_vertices()},
-                         {"control_vertices", prep.control.num_vertices()},
-                         {"decoded_vertices", files.decoded.num_vertices()},
-                         {"coefficients_per_bit", spread}};
+              {"asset_sha256", asset.sha256},
+              {"customer", customer->name},
+              {"key_version", ck.version},
+              {"output", out},
+              {"output_sha256", out_sha},
+              {"stream", stream_path},
+              {"stream_sha256", stream_sha},
+              {"stream_bytes", files.stream.size()},
+              {"payload", phex},
+              {"vertices", mesh.num_vertices()},
+              {"control_vertices", prep.control.num_vertices()},
+              {"decoded_vertices", files.decoded.num_vertices()},
+              {"coefficients_per_bit", spread}};
   if (!warning.empty()) result["warning"] = warning;
   rec.result_json = result.dump();
   return rec;
