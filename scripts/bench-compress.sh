@@ -178,6 +178,8 @@ echo
 printf '%-14s %8s %8s %8s %8s %10s %8s %8s %10s\n' mesh in_faces ctrl_v fit_s check_s command_s run_s rss_MB dec_l3_ms
 first_seed=${SEEDS%% *}
 fit_ok=0 job_ok=0 command_ok=0 run_ok=0 dec_ok=0 n_parts=0
+# less_than A B: whether A < B as numbers, an empty B counting as none yet (the least so far).
+less_than() { [ -z "$2" ] || python3 -c "import sys; sys.exit(0 if $1 < $2 else 1)"; }
 # protect_job_cpu PART: CPU seconds of one protect job of PART through `meshmark run`.
 protect_job_cpu() {
   local home
@@ -203,7 +205,7 @@ for name in $LIST; do
     json=$(cpu_seconds "$OUT/$base.protect-path.cpu" "$MESHMARK" compress "$in" "$OUT/$base.protect-path.mmc" \
            --tolerance "$TOLERANCE" --max-vertices "$MAX_VERTICES" --angle 35 --no-coarsen --threads 1 --seed 1 --json)
     this=$(cat "$OUT/$base.protect-path.cpu")
-    if [ -z "$command" ] || python3 -c "import sys; sys.exit(0 if $this < $command else 1)"; then
+    if less_than "$this" "$command"; then
       command=$this
       fast=$json
     fi
@@ -212,7 +214,7 @@ for name in $LIST; do
   job_run=""
   for ((run = 1; run <= SPEED_RUNS; run++)); do
     this=$(protect_job_cpu "$in")
-    if [ -z "$job_run" ] || python3 -c "import sys; sys.exit(0 if $this < $job_run else 1)"; then job_run=$this; fi
+    if less_than "$this" "$job_run"; then job_run=$this; fi
   done
   read -r faces ctrl secs check rss < <(jq -r '"\(.input_faces) \(.control_vertices) \(.seconds - .verify_seconds) \(.verify_seconds) \(.peak_rss_mb)"' <<<"$fast")
   dec=$(for k in 1 2 3 4 5; do
