@@ -5,7 +5,6 @@
 #include <memory>
 #include <numeric>
 #include <optional>
-#include <sstream>
 #include <string>
 
 #include "codec/stream.h"
@@ -14,6 +13,7 @@
 #include "fitting/rail_quads.h"
 #include "fitting/segmentation.h"
 #include "fitting/sharp_features.h"
+#include "meshio/read_mesh.h"
 
 namespace mm {
 namespace {
@@ -219,14 +219,9 @@ std::vector<double> fallback_crease_angles() { return {30.0, 25.0, 20.0}; }
 
 std::string rounds_schedule_key(const CompressOptions& o) {
   if (o.coarsen) return ";coarsen=1";
-  const auto number = [](double x) {
-    std::ostringstream s;
-    s << x;
-    return s.str();
-  };
-  return ";rounds=coarse-warm;warm-iterations=" + std::to_string(kWarmIterations) + ";warm-within=" + number(kWarmWithin) +
-         ";warm-quads=0;bisect=" + std::to_string(kBisectFraction) + ";first-warm-growth=" + number(kFirstWarmGrowth) +
-         ";fit=reweighted-" + number(kReweight);
+  return ";rounds=coarse-warm;warm-iterations=" + std::to_string(kWarmIterations) +
+         ";warm-within=" + shortest_text(kWarmWithin) + ";warm-quads=0;bisect=" + std::to_string(kBisectFraction) +
+         ";first-warm-growth=" + shortest_text(kFirstWarmGrowth) + ";fit=reweighted-" + shortest_text(kReweight);
 }
 
 bool stopped_at_budget(const CompressResult& r, const CompressOptions& o) {
@@ -318,6 +313,8 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
   // meets it, the rounds left bisect between the two, since the growth step may overshoot.
   int failed_n = 0, fit_n = 0;
   WarmStart warm_start;
+  // Whether the round after one with this error starts warm (kWarmWithin).
+  const auto warm_after = [&o](double error) { return !o.coarsen && error <= kWarmWithin * o.tolerance; };
   for (int round = 0; round < o.max_rounds; ++round) {
     ++out.rounds;
     auto control = decimation.build(co);
@@ -386,7 +383,7 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
       }
       return met;
     };
-    const bool warm = !o.coarsen && round > 0 && out.round_errors.back() <= kWarmWithin * o.tolerance;
+    const bool warm = round > 0 && warm_after(out.round_errors.back());
     FitOptions warm_fit = fit;
     warm_fit.iterations = kWarmIterations;
     bool fits;
@@ -442,8 +439,7 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     // vertices went astray in its decimation, and is no measure of how many more are needed
     // (flanged_cylinder: 68 vertices at 0.66 %, then 79 at 1.64 % grew to 144).
     const double grow_rel = have ? std::min(rel, best.stats.hausdorff / best.stats.diagonal) : rel;
-    const bool next_warm = !o.coarsen && rel <= kWarmWithin * o.tolerance;
-    const double least = next_warm && level != o.levels ? kFirstWarmGrowth : 1.15;
+    const double least = warm_after(rel) && level != o.levels ? kFirstWarmGrowth : 1.15;
     const double grow = std::clamp(std::sqrt(grow_rel / o.tolerance), least, 2.0);
     // From the vertices the round had, where the decimation stopped above its target (corners
     // and crease floors): grown from the target, abc8's second round had 106 vertices to the

@@ -442,6 +442,17 @@ std::vector<int> query_order(const std::vector<TriangleHit>* hints, size_t count
   return order;
 }
 
+// The closest points on `tree` of `count` queries (point(k): the k-th query's point), each from
+// its hint when given, made in query_order and returned in index order.
+template <class Point>
+std::vector<TriangleHit> closest_hits(const TriangleBvh& tree, size_t count, Point point,
+                                      const std::vector<TriangleHit>* hints) {
+  std::vector<TriangleHit> hits(count);
+  for (const int k : query_order(hints, count, tree))
+    hits[static_cast<size_t>(k)] = tree.closest(point(k), hints ? (*hints)[static_cast<size_t>(k)].triangle : -1);
+  return hits;
+}
+
 Correspondences correspond(const Points& R, const TriangleBvh& surf, const SegmentBvh& crease,
                            const std::vector<std::pair<int, int>>& refined_creases,
                            const TargetSamples& samples, const TriangleBvh& target_tris,
@@ -463,10 +474,9 @@ Correspondences correspond(const Points& R, const TriangleBvh& surf, const Segme
   std::vector<char> on_crease(R.rows(), 0);
   for (auto [a, b] : refined_creases) on_crease[a] = on_crease[b] = 1;
   if (!surf.empty()) {
-    std::vector<TriangleHit> on_surface(samples.surface.size());
-    for (const int k : query_order(hints ? &hints->on_surface : nullptr, samples.surface.size(), surf))
-      on_surface[static_cast<size_t>(k)] =
-          surf.closest(samples.surface[static_cast<size_t>(k)], hints ? hints->on_surface[static_cast<size_t>(k)].triangle : -1);
+    std::vector<TriangleHit> on_surface =
+        closest_hits(surf, samples.surface.size(), [&](int k) { return samples.surface[static_cast<size_t>(k)]; },
+                     hints ? &hints->on_surface : nullptr);
     for (size_t k = 0; k < samples.surface.size(); ++k) {
       const auto& p = samples.surface[k];
       const TriangleHit& h = on_surface[k];
@@ -477,10 +487,9 @@ Correspondences correspond(const Points& R, const TriangleBvh& surf, const Segme
     if (hints) hints->on_surface = std::move(on_surface);
   }
   if (!target_tris.empty()) {
-    std::vector<TriangleHit> on_target(static_cast<size_t>(R.rows()));
-    for (const int v : query_order(hints ? &hints->on_target : nullptr, static_cast<size_t>(R.rows()), target_tris))
-      on_target[static_cast<size_t>(v)] =
-          target_tris.closest(R.row(v).transpose(), hints ? hints->on_target[static_cast<size_t>(v)].triangle : -1);
+    std::vector<TriangleHit> on_target =
+        closest_hits(target_tris, static_cast<size_t>(R.rows()), [&](int v) { return Eigen::Vector3d(R.row(v).transpose()); },
+                     hints ? &hints->on_target : nullptr);
     for (Eigen::Index v = 0; v < R.rows(); ++v) {
       if (with_creases && on_crease[v] && !target_creases.empty()) {
         const SegmentHit h =

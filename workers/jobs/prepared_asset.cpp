@@ -2,7 +2,6 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -10,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "meshio/read_mesh.h"
 #include "quality/surface_distance.h"
 
 namespace mm::jobs {
@@ -18,12 +18,6 @@ namespace {
 
 constexpr char kPolyMagicV1[8] = {'M', 'M', 'P', 'O', 'L', 'Y', '0', '1'};
 constexpr char kPolyMagic[8] = {'M', 'M', 'P', 'O', 'L', 'Y', '0', '2'};
-
-std::string shortest(double d) {
-  char buf[32];
-  auto r = std::to_chars(buf, buf + sizeof buf, d);
-  return std::string(buf, r.ptr);
-}
 
 struct Writer {
   std::vector<std::uint8_t> out;
@@ -94,7 +88,7 @@ struct Reader {
 // ";fallback=30,25,20" (rows prepared before the fallback have none), or nothing when empty.
 std::string fallback_key(const std::vector<double>& angles) {
   std::string k;
-  for (double a : angles) k += (k.empty() ? ";fallback=" : ",") + shortest(a);
+  for (double a : angles) k += (k.empty() ? ";fallback=" : ",") + shortest_text(a);
   return k;
 }
 
@@ -145,8 +139,8 @@ std::string PrepareParams::key() const {
   // ";rounds=coarse-warm;warm-quads=0;bisect=6;fit=reweighted"; now rounds_schedule_key()
   // spells out compress.cpp's constants, so a change to them fits assets again).
   const CompressOptions& c = compression;
-  return "prepare-v2;compress;verify=dense;tolerance=" + shortest(c.tolerance) + ";max_vertices=" + std::to_string(c.max_vertices) +
-         ";levels=" + std::to_string(c.levels) + ";angle=" + shortest(c.angle_degrees) +
+  return "prepare-v2;compress;verify=dense;tolerance=" + shortest_text(c.tolerance) + ";max_vertices=" + std::to_string(c.max_vertices) +
+         ";levels=" + std::to_string(c.levels) + ";angle=" + shortest_text(c.angle_degrees) +
          ";max_rounds=" + std::to_string(c.max_rounds) + (c.rail_quads ? ";quads=rail" : "") + rounds_schedule_key(c) +
          (c.seed != 1 ? ";seed=" + std::to_string(c.seed) : "") + fallback_key(fallback_angles) +
          ";basis=dense-kirchhoff";

@@ -41,4 +41,8 @@ Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::st
 // Throws InputError(path, reason) for an invalid mesh or an I/O failure.
 void write_mesh(const Mesh& mesh, const std::string& path);
 
+// A double as the text writers print it: the shortest text that reads back to the same value
+// (std::to_chars). Cache keys and records name their parameters with it too.
+std::string shortest_text(double d);
+
 }  // namespace mm

@@ -194,4 +194,10 @@ void write_mesh(const Mesh& mesh, const std::string& path) {
   atomic_write(path, bytes);
 }
 
+std::string shortest_text(double d) {
+  std::string s;
+  append_double(s, d);
+  return s;
+}
+
 }  // namespace mm

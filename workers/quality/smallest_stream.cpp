@@ -163,17 +163,17 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
   bool measured = false;  // out.distance is the written stream's
   // The chosen polyhedron's points: its own, or descended on the grid (grid_descent.h).
   std::optional<Mesh> descended;
-  // Keeps a stream that a check found within the tolerances, or, with `whole`, one measured
-  // whole (which then says whether it meets them). A caller keeping one that missed (the
-  // search's fallback) clears out.meets after.
+  // Keeps a stream that a check found within the tolerances (`checked_within`; not so for the search's
+  // fallback, kept though it missed), or, with `whole`, one measured whole (which then says
+  // whether it meets them).
   const auto keep = [&](std::vector<std::uint8_t>&& bytes, int bits, std::size_t k, std::optional<Mesh>&& on_grid,
-                        const std::optional<SurfaceDistance>& whole = std::nullopt) {
+                        const std::optional<SurfaceDistance>& whole = std::nullopt, bool checked_within = true) {
     out.bytes = std::move(bytes);
     out.bits = bits;
     out.polyhedron = static_cast<int>(k);
     out.descended = on_grid.has_value();
     descended = std::move(on_grid);
-    out.meets = !whole || meets(*whole);
+    out.meets = whole ? meets(*whole) : checked_within;
     measured = whole.has_value();
     if (whole) out.distance = *whole;
   };
@@ -209,10 +209,7 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
           keep(std::move(candidate), b, k, std::nullopt);
           break;
         }
-        if (fallback) {
-          keep(std::move(candidate), b, k, std::nullopt);
-          out.meets = false;
-        }
+        if (fallback) keep(std::move(candidate), b, k, std::nullopt, std::nullopt, false);
         // Beyond the descent's reach (and kCloseToTolerance below it) a miss is all the search
         // needs to know.
         if (!within(decoded, kDescentReach)) continue;
