@@ -84,9 +84,9 @@ constexpr int kBisectFraction = 6;
 
 // Into the first full-level round (without coarsening): after a coarse round within kWarmWithin
 // times the tolerance, the vertices grow by at least kFirstWarmGrowth (1.15 otherwise). At 1.15
-// the first full-level round missed by a few percent in 5 of 27 runs (rocker at 413 vertices
-// 0.52 %, abc6 at 57 0.52 %, abc8 at 214 0.56 %), and a second full-level fit costs more than
-// the extra vertices. And coarse rounds' misses do not bound the bisection: their errors are
+// the first full-level round missed in 6 of the 14 such rounds over the bench parts and seeds
+// 1-3, by a little (rocker at 413 vertices 0.52 %, abc6 at 57 0.52-0.61 %, abc8 at 212-214
+// 0.54-0.56 %), and a second full-level fit costs more than the extra vertices. And coarse rounds' misses do not bound the bisection: their errors are
 // the coarser surface's, and the bisection rounds down towards them mostly missed again
 // (bracket-3: 82 vertices at 2.6 %, 164 met, then 123 and 143 missed; rocker: 333 at 0.88 %,
 // 443 met, then 388 missed), a full-level fit each. Measured over the nine bench parts and
