@@ -603,6 +603,7 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
     }
     details["candidates"].push_back(cj);
   }
+  std::string inconclusive_reason;  // why a matching mark is not an attribution
   if (candidates.empty()) {
     d.verdict = "unknown asset";
   } else if (!best) {
@@ -629,6 +630,14 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
           d.verdict = "attributed";
           d.copy_id = c.id;
           d.customer_id = c.customer_id;
+        } else if (best->corrected_p < cfg.p_threshold) {
+          // The copy's mark is there but its payload did not decode whole: neither an attribution
+          // nor "no watermark", which would tell a legal team the opposite of the evidence.
+          d.verdict = "inconclusive";
+          const int wrong = static_cast<int>(std::lround(best->bit_error_rate * bits));
+          inconclusive_reason = "copy " + std::to_string(c.id) + "'s mark matches (corrected p " +
+                                fmt::format("{:.3g}", best->corrected_p) + ") but its payload decoded with " +
+                                std::to_string(wrong) + " of " + std::to_string(bits) + " bits wrong";
         }
       }
     d.decoded_payload_hex = jobs::payload_hex(best->decoded_payload, bits);
@@ -642,6 +651,7 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
   rec.audit.push_back({ctx.worker_id, "detect", "job:" + std::to_string(job.id),
                        json{{"suspect_sha256", sha}, {"verdict", d.verdict}}.dump()});
   json result{{"verdict", d.verdict}, {"suspect_sha256", sha}, {"copies_tried", total}, {"match", match}};
+  if (!inconclusive_reason.empty()) result["reason"] = inconclusive_reason;
   if (d.asset_id) result["asset_id"] = *d.asset_id;
   if (d.copy_id) result["copy_id"] = *d.copy_id;
   if (d.customer_id) {

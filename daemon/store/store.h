@@ -109,7 +109,7 @@ struct IssuedCopy : NewCopy {
 struct NewDetection {
   std::string suspect_sha256;
   std::string suspect_name;
-  std::string verdict;  // "attributed", "no watermark found", "unknown asset", ...
+  std::string verdict;  // "attributed", "inconclusive", "no watermark found", "unknown asset"
   std::optional<std::int64_t> asset_id;
   std::optional<std::int64_t> copy_id;
   std::optional<std::int64_t> customer_id;

@@ -23,6 +23,7 @@
 #include "codec/stream.h"
 #include "meshio/read_mesh.h"
 #include "store/home.h"
+#include "store/sqlite_db.h"
 #include "store/store.h"
 
 namespace {
@@ -483,6 +484,57 @@ TEST_F(E2E, CopiesLeakedAsIssuedAreAttributed) {
     ASSERT_TRUE(det.resync_residual.has_value());
     EXPECT_LT(*det.resync_residual, 1e-6) << det.suspect_name;
   }
+}
+
+// A copy's mark found, but its payload decoded differently from the record (here: the record's
+// payload changed by one bit after issue): "inconclusive" with the reason, never "no watermark
+// found" (the opposite of the evidence) and never an attribution.
+TEST_F(E2E, MarkFoundWithAnotherPayloadIsInconclusive) {
+  MM_REQUIRE_SHARED_MESHES();
+  write_config({{"output_format", "stl"}, {"watermark", {{"message_bits", 16}}}});
+  const std::string cfg = (dir / "meshmarkd.json").string();
+  const auto run = [&] {
+    const std::string cmd = std::string(MESHMARK_EXE) + " run --until-empty --no-drops --config " + cfg + " >/dev/null";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << log();
+  };
+  const std::string protect = std::string(MESHMARK_EXE) + " submit protect --config " + cfg +
+                              " --customer alpha " + mm::test::shared_mesh("abc7.stl") + " >/dev/null";
+  ASSERT_EQ(std::system(protect.c_str()), 0);
+  run();
+  auto st = store();
+  const auto copies = st->list_copies();
+  ASSERT_EQ(copies.size(), 1u);
+  std::string payload = copies[0].payload_hex;
+  ASSERT_EQ(payload.size(), 4u);
+  payload.back() = payload.back() == '0' ? '1' : '0';  // bit 0
+  {
+    mm::store::sql::Db db(mm::store::resolve_home(home.string()).db, 10000);
+    db.exec("UPDATE issued_copies SET payload_hex = '" + payload + "' WHERE id = " + std::to_string(copies[0].id),
+            "changing a copy's payload");
+  }
+  const fs::path file = output_of(*st, "alpha", "abc7.stl");
+  ASSERT_FALSE(file.empty());
+  const std::string detect = std::string(MESHMARK_EXE) + " submit detect --config " + cfg + " " + file.string() + " >/dev/null";
+  ASSERT_EQ(std::system(detect.c_str()), 0);
+  run();
+  const auto dets = st->list_detections();
+  ASSERT_EQ(dets.size(), 1u);
+  EXPECT_EQ(dets[0].verdict, "inconclusive") << dets[0].details_json.substr(0, 600);
+  EXPECT_FALSE(dets[0].customer_id.has_value());
+  EXPECT_FALSE(dets[0].copy_id.has_value());
+  ASSERT_TRUE(dets[0].p_value.has_value());
+  EXPECT_LT(*dets[0].p_value, 1e-6);
+  const auto jobs = st->list_jobs();
+  bool seen = false;
+  for (const auto& j : jobs)
+    if (j.kind == "detect") {
+      const json r = json::parse(j.result_json);
+      EXPECT_EQ(r["verdict"], "inconclusive") << r.dump();
+      EXPECT_FALSE(r.contains("customer")) << r.dump();
+      EXPECT_NE(r.value("reason", "").find("payload decoded with 1 of 16 bits wrong"), std::string::npos) << r.dump();
+      seen = true;
+    }
+  EXPECT_TRUE(seen);
 }
 
 TEST_F(E2E, BatchRunUntilEmptyWithoutDaemon) {

@@ -291,6 +291,46 @@ TEST(Watermark, MajorityVoteCorrectsMinorityFlips) {
   EXPECT_NEAR(f.bit_error_rate, 1.0 / l, 1e-15);
 }
 
+// A tied vote goes to the copies that moved furthest in units of their embedding move: half of a
+// bit's copies barely pushed past zero lose to the half that kept the mark's full move, and win
+// when they moved further. (Before, every tie decoded as 0.)
+TEST(Watermark, TiedVoteGoesToTheLargerDisplacements) {
+  const Mesh m = torus();
+  const SpectralBasis basis = compute_basis(m);
+  const int l = 64;
+  const int r = usable_coefficients(basis) / l;
+  ASSERT_EQ(r % 2, 0) << r;
+  for (int bit : {3, 4}) {
+    for (std::uint64_t seed : {11u, 12u}) {
+      const auto msg = seeded_message(l, seed);
+      const Key key = seeded_key(seed);
+      const Nonce nonce = seeded_nonce(seed);
+      const Points marked = embed(basis, m.points, msg, key, nonce, kMethod2);
+      // Half of the bit's copies displaced by `factor` times their mark.
+      auto tie = [&](double factor) {
+        Points d = to_spectral(basis, marked) - to_spectral(basis, m.points);
+        for (int c = 0; c < r / 2; ++c) {
+          const int j = c * l + bit;
+          d(basis.num_components + j / 3, j % 3) *= factor;
+        }
+        return Points(m.points + from_spectral(basis, d));
+      };
+      const Extraction slight = extract(basis, m.points, tie(-0.2), l, key, nonce, kMethod2, &msg);
+      EXPECT_EQ(slight.tied_bits, 1);
+      EXPECT_EQ(slight.message, msg) << "bit " << bit << " seed " << seed;
+      EXPECT_EQ(slight.compared - slight.agreements, r / 2);
+      const Extraction far = extract(basis, m.points, tie(-3.0), l, key, nonce, kMethod2, &msg);
+      EXPECT_EQ(far.tied_bits, 1);
+      auto wrong = msg;
+      wrong[static_cast<std::size_t>(bit)] = !wrong[static_cast<std::size_t>(bit)];
+      EXPECT_EQ(far.message, wrong) << "bit " << bit << " seed " << seed;
+      // Without the expected message the decoded one is the same, and so is the agreement count.
+      const Extraction blind = extract(basis, m.points, tie(-0.2), l, key, nonce, kMethod2);
+      EXPECT_EQ(blind.message, msg);
+    }
+  }
+}
+
 TEST(Watermark, SameCallTwiceGivesIdenticalBytes) {
   const Mesh m = torus();
   const auto msg = seeded_message(40, 10);

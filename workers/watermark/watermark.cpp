@@ -105,6 +105,11 @@ Extraction extract(const SpectralBasis& basis, const Points& original, const Poi
   out.repeat = stream.repeat;
   out.signs.assign(stream.b.size(), 0);
   std::vector<int> votes(message_bits, 0), copies(message_bits, 0);
+  // Per bit, the copies' displacements in units of their embedding move, signed as votes: what
+  // decides a tied vote. With 4 copies a bit (a 32-bit payload on 48 control vertices), two
+  // flipped signs of one bit tie it, and a noisy STL leak of abc9 matched its copy at p 1e-24
+  // yet decoded one bit wrong when ties read as 0 (docs/watermark.md, "Extraction (paper IV.D)").
+  std::vector<double> soft(message_bits, 0.0);
   for (int j = 0; j < static_cast<int>(stream.b.size()); ++j) {
     const double c = coefficient(basis, cs, j);
     const bool add = additive(params, c);
@@ -118,13 +123,14 @@ Extraction extract(const SpectralBasis& basis, const Points& original, const Poi
     const int vote = -sign_b * stream.b[j];
     const int bit = j % message_bits;
     votes[bit] += vote;
+    soft[bit] -= dj * (add || c > 0 ? 1 : -1) / move * stream.b[j];
     ++copies[bit];
     ++out.compared;
     if (expected) out.agreements += (vote > 0) == bool((*expected)[bit]);
   }
   out.message.resize(message_bits);
   for (int i = 0; i < message_bits; ++i) {
-    out.message[i] = votes[i] > 0;
+    out.message[i] = votes[i] != 0 ? votes[i] > 0 : soft[i] > 0;
     out.tied_bits += votes[i] == 0;
   }
   BinomialTail tail;

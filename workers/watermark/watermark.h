@@ -54,8 +54,11 @@ Points embed(const SpectralBasis& basis, const Points& original, const std::vect
 // (majority_vote_tail) rather than the binomial.
 struct Extraction {
   double correlation = 0;        // (1/m) sum B'' B = (2 agreements - m) / m over the m compared
-  std::vector<bool> message;     // majority vote per bit (a tie or no vote gives false)
-  int tied_bits = 0;             // bits whose vote was tied or had no compared copy
+  // Majority vote per bit; a tie goes to the sign of the bit's summed displacements, each in units
+  // of its embedding move (the copies that moved far outweigh those that barely crossed zero);
+  // no compared copy gives false.
+  std::vector<bool> message;
+  int tied_bits = 0;             // bits whose vote was tied (however broken) or had no compared copy
   double bit_error_rate = 0;     // against `expected` when given, else NaN
   int agreements = 0, compared = 0;  // coefficient signs that agree with B / that carried a sign
   int repeat = 0;                // r used
