@@ -1,7 +1,10 @@
 #include "cli/attacks.h"
 
 #include <cmath>
+#include <numeric>
 #include <random>
+
+#include "subdivision/subdivide.h"
 
 namespace mm::cli {
 
@@ -29,6 +32,19 @@ void apply_similarity(Points& points, double scale, double rotate_degrees, const
     points(i, 1) = scale * (s * x + c * y) + shift.y() * side;
     points(i, 2) = scale * z + shift.z() * side;
   }
+}
+
+Mesh subdivide_linear(Mesh mesh, int levels) {
+  for (int level = 0; level < levels; ++level) {
+    // Crease edge points are midpoints, corners stay, a quad's face point is its centre.
+    mesh.creases = unique_edges(mesh);
+    mesh.corners.resize(static_cast<std::size_t>(mesh.num_vertices()));
+    std::iota(mesh.corners.begin(), mesh.corners.end(), 0);
+    mesh = subdivide(mesh, 1);
+  }
+  mesh.creases.clear();
+  mesh.corners.clear();
+  return mesh;
 }
 
 }  // namespace mm::cli

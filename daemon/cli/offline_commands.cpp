@@ -84,6 +84,7 @@ void add_attack_commands(CLI::App& app) {
     double amplitude = 0.001;
     std::uint64_t seed = 1;
     int levels = 1;
+    bool linear = false;
     double scale = 1, rotate = 0;
     std::vector<double> shift{0, 0, 0};
   };
@@ -116,17 +117,20 @@ void add_attack_commands(CLI::App& app) {
       "subdivide", "Refine with Stam-Loop quad/triangle subdivision (creases of a .mmc input kept)");
   io(sub);
   sub->add_option("-L,--levels", a->levels, "subdivision steps")->capture_default_str()->check(CLI::Range(1, 5));
+  sub->add_flag("--linear", a->linear,
+                "split each face into four at its edges' midpoints instead: the same surface, four times the "
+                "faces per step, no vertex moved");
   sub->callback([a, finish] {
     InputFile in = load_input(a->in);
     Mesh m;
     try {
-      m = subdivide(in.mesh, a->levels);
+      m = a->linear ? subdivide_linear(in.mesh, a->levels) : subdivide(in.mesh, a->levels);
     } catch (const InputError& e) {
       throw InputError(a->in, "cannot subdivide: " + e.reason());
     } catch (const std::invalid_argument& e) {
       throw InputError(a->in, std::string("cannot subdivide: ") + e.what());
     }
-    finish(in, m, std::to_string(a->levels) + " subdivision level(s)");
+    finish(in, m, std::to_string(a->levels) + (a->linear ? " midpoint split(s)" : " subdivision level(s)"));
   });
 
   auto* sim = attack->add_subcommand(

@@ -111,6 +111,15 @@ TEST(CliAttack, NoiseIsSeededAndBoundedSimilarityAndSubdivideDoWhatTheySay) {
 
   EXPECT_RUN_OK(meshmark(s, {"attack", "subdivide", part, s / "sub.off", "--levels", "1"}));
   EXPECT_GT(read_mesh(s / "sub.off").num_vertices(), 3 * m.num_vertices());
+  // Midpoint splits: four faces for one, the old vertices where they were, the new ones on the
+  // old surface (a smooth step moves them off it, by more than the split's rounding).
+  EXPECT_RUN_OK(meshmark(s, {"attack", "subdivide", part, s / "split.off", "--levels", "2", "--linear"}));
+  const Mesh split = read_mesh(s / "split.off");
+  EXPECT_EQ(split.num_faces(), 16 * m.num_faces());
+  EXPECT_EQ(split.points.topRows(m.num_vertices()), m.points);
+  EXPECT_TRUE(split.creases.empty());
+  EXPECT_LT(surface_distance(m, split).hausdorff_relative(), 1e-12);
+  EXPECT_GT(surface_distance(m, read_mesh(s / "sub.off")).hausdorff_relative(), 1e-4);
 
   const CliRun missing = meshmark(s, {"attack", "noise", s / "nope.off", s / "x.off"});
   EXPECT_EQ(missing.code, 2);
