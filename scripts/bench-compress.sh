@@ -194,10 +194,23 @@ protect_job_cpu() {
   cat "$home/cpu"
   rm -rf "$home"
 }
-for name in $LIST; do
-  in="$MESHES/$name"
+# The shared parts have at most 14.5k triangles; the target is for 20k. abc5 with each triangle
+# split into four at its edges' midpoints (20,320 triangles, the same surface) is measured too,
+# in its own line below and not in the counts, which stay over the shared parts.
+large=""
+if [[ " $LIST " == *" abc5.stl "* ]]; then
+  large="$OUT/abc5-20k.stl"
+  "$MESHMARK" attack subdivide --linear "$MESHES/abc5.stl" "$large" >/dev/null
+fi
+parts=()
+for name in $LIST; do parts+=("$MESHES/$name"); done
+[ -z "$large" ] || parts+=("$large")
+for in in "${parts[@]}"; do
+  name=$(basename "$in")
   base="${name%.*}"
   mmc=$(stream_path "$base" "$first_seed")
+  # No stream of the default command for the split part: its protect-path stream is decoded.
+  [ -f "$mmc" ] || mmc="$OUT/$base.protect-path.mmc"
   # The same command SPEED_RUNS times (the same stream each time): a shared or virtual machine's
   # timings spread by 20-30 % between runs, and the least is the one least disturbed.
   command=""
@@ -220,18 +233,23 @@ for name in $LIST; do
   dec=$(for k in 1 2 3 4 5; do
           "$MESHMARK" decompress "$mmc" "$OUT/$base.level3.ply" --level 3 --json | jq -r '.decode_seconds + .subdivide_seconds'
         done | sort -g | head -1)
+  printf '%-14s %8d %8d %8.2f %8.2f %10.2f %8.2f %8.1f %10.2f\n' "$base" "$faces" "$ctrl" "$secs" "$check" "$command" \
+    "$job_run" "$rss" "$(python3 -c "print(1000 * $dec)")"
+  if [ "$in" = "$large" ]; then
+    large_line="a 20k-triangle part (abc5 split 1:4, $faces triangles): the fit $(python3 -c "print('%.2f' % $secs)") s, a protect job's $(python3 -c "print('%.2f' % ($secs + $check))") s, the whole command $command s, a protect job through meshmark run $job_run s"
+    continue
+  fi
   n_parts=$((n_parts + 1))
   fit_ok=$((fit_ok + $(python3 -c "print(int($secs < 1))")))
   job_ok=$((job_ok + $(python3 -c "print(int($secs + $check < 1))")))
   command_ok=$((command_ok + $(python3 -c "print(int($command < 1))")))
   run_ok=$((run_ok + $(python3 -c "print(int($job_run < 1))")))
   dec_ok=$((dec_ok + $(python3 -c "print(int($dec < 0.010))")))
-  printf '%-14s %8d %8d %8.2f %8.2f %10.2f %8.2f %8.1f %10.2f\n' "$base" "$faces" "$ctrl" "$secs" "$check" "$command" \
-    "$job_run" "$rss" "$(python3 -c "print(1000 * $dec)")"
 done
 echo "compress under 1 s CPU: the fit $fit_ok of $n_parts parts, a protect job's (fit and checks) $job_ok," \
   "the whole command $command_ok, a protect job through meshmark run $run_ok;" \
   "decompress to level 3 under 10 ms: $dec_ok of $n_parts"
+[ -z "$large" ] || echo "$large_line"
 
 # Pictures of fandisk: original, control polyhedron with creases, decoded surface.
 if [ "$SEEDS" = 1 ] && [ -f "$OUT/fandisk.mmc" ] && "$MESHMARK" render --help >/dev/null 2>&1; then
