@@ -5,6 +5,7 @@
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <optional>
 #include <array>
 #include <cmath>
 #include <atomic>
@@ -423,6 +424,70 @@ void mutual_pairs(const Points& target, const PointGrid& target_grid, const Poin
   }
 }
 
+// Vertex neighbours along face sides, ascending (compressed rows).
+struct Adjacency {
+  std::vector<int> offsets, list;
+  explicit Adjacency(const Mesh& mesh) : offsets(static_cast<std::size_t>(mesh.num_vertices()) + 1, 0) {
+    const auto edges = unique_edges(mesh);
+    for (const auto& [a, b] : edges) ++offsets[static_cast<std::size_t>(a) + 1], ++offsets[static_cast<std::size_t>(b) + 1];
+    for (std::size_t v = 1; v < offsets.size(); ++v) offsets[v] += offsets[v - 1];
+    list.resize(static_cast<std::size_t>(offsets.back()));
+    std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+    for (const auto& [a, b] : edges) list[static_cast<std::size_t>(fill[a]++)] = b, list[static_cast<std::size_t>(fill[b]++)] = a;
+    for (std::size_t v = 0; v + 1 < offsets.size(); ++v)
+      std::sort(list.begin() + offsets[v], list.begin() + offsets[v + 1]);
+  }
+};
+
+// A renumbered copy (a welded STL of a decoded file) keeps the refined mesh's connectivity. The
+// pairs `seeds` (refined rows the estimate explains to float precision) are kept, and pairs grow
+// from them along the edges: an unpaired neighbour of a paired refined vertex takes, of its partner's unpaired
+// neighbours, the one nearest its estimate; what the growth does not reach keeps its mutual pair
+// when that suspect vertex is still free. Mutual nearest neighbours alone swap neighbours where
+// the mark moves vertices by a fair part of their spacing; the solve leaves those pairs out
+// (pairs_in_line), and control points left with no pair stay at the original's positions, so
+// their vertices were paired the same way again round after round (blade's issued STL copies: 0
+// of 6 paired exactly, correlation down to 0.27, one of six not attributed; docs/registration.md).
+void grow_pairs(const Adjacency& refined, const Adjacency& suspect, const Points& estimate, const Points& cur,
+                const std::vector<int>& seeds, Matching* m) {
+  const int nr = static_cast<int>(estimate.rows());
+  std::vector<int> of(static_cast<std::size_t>(nr), -1), queue;
+  std::vector<char> taken(static_cast<std::size_t>(cur.rows()), 0);
+  queue.reserve(static_cast<std::size_t>(nr));
+  for (int j : seeds) {
+    const int i = m->suspect_of[static_cast<std::size_t>(j)];
+    of[static_cast<std::size_t>(j)] = i;
+    taken[static_cast<std::size_t>(i)] = 1;
+    queue.push_back(j);
+  }
+  for (std::size_t q = 0; q < queue.size(); ++q) {
+    const int j = queue[q], i = of[static_cast<std::size_t>(j)];
+    for (int a = refined.offsets[static_cast<std::size_t>(j)]; a < refined.offsets[static_cast<std::size_t>(j) + 1]; ++a) {
+      const int j2 = refined.list[static_cast<std::size_t>(a)];
+      if (of[static_cast<std::size_t>(j2)] >= 0) continue;
+      int best = -1;
+      double best2 = std::numeric_limits<double>::infinity();
+      for (int b = suspect.offsets[static_cast<std::size_t>(i)]; b < suspect.offsets[static_cast<std::size_t>(i) + 1]; ++b) {
+        const int i2 = suspect.list[static_cast<std::size_t>(b)];
+        if (taken[static_cast<std::size_t>(i2)]) continue;
+        const double d2 = (estimate.row(j2) - cur.row(i2)).squaredNorm();
+        if (d2 < best2) best2 = d2, best = i2;
+      }
+      if (best < 0) continue;
+      of[static_cast<std::size_t>(j2)] = best;
+      taken[static_cast<std::size_t>(best)] = 1;
+      queue.push_back(j2);
+    }
+  }
+  for (int j = 0; j < nr; ++j) {
+    const int i = m->suspect_of[static_cast<std::size_t>(j)];
+    if (of[static_cast<std::size_t>(j)] < 0 && i >= 0 && !taken[static_cast<std::size_t>(i)])
+      of[static_cast<std::size_t>(j)] = i, taken[static_cast<std::size_t>(i)] = 1;
+  }
+  m->suspect_of = std::move(of);
+  m->matched = static_cast<int>(std::count_if(m->suspect_of.begin(), m->suspect_of.end(), [](int i) { return i >= 0; }));
+}
+
 // The turn search: suspect vertices it scores turns on, local minima it refines, ICP rounds each.
 constexpr int kTurnSamples = 1000;
 constexpr std::size_t kTurnMinima = 16;
@@ -516,8 +581,13 @@ Matching match_vertices(const LevelData& level, const Points& suspect, const Res
 // an estimate from all pairs puts the swapped vertices where the swap says, so the next pairing
 // kept them (the chamfered block's issued STL copies: 0.3-0.8 % of the pairs, residual 5.7e-4 of
 // the diagonal instead of float precision, 7 of 18 messages wrong). The pairs still count as
-// paired, and the residual reported is over all of them.
-constexpr double kSwappedPair = 10, kPairFloor = 1e-6;
+// paired, and the residual reported is over all of them. The floor is far below any refined
+// spacing (a swapped pair is off by about one) but above what a stale estimate leaves on right
+// pairs: control points whose pairs are all left out stay at the original's positions, their
+// refined vertices off by the mark, and at 1e-6 (until 2026-12-03) those pairs were left out
+// round after round (blade's issued STL copies: up to a quarter of the pairs; with grow_pairs
+// alone two of four seeded copies still paired inexactly, correlation down to 0.77).
+constexpr double kSwappedPair = 10, kPairFloor = 1e-4;
 
 // The pairs (rows, p) whose residual against `refined` (the estimate's refined vertices) is in
 // line as above, into kept_rows / kept_p. False when none is out of line.
@@ -548,8 +618,13 @@ bool pairs_in_line(const Points& refined, double diagonal, const std::vector<int
 // float coordinates), when a similarity could only take in part of the mark.
 constexpr double kClearlyBetter = 0.5, kExact = 1e-7;
 
+// A pair residual (relative to the diagonal) that only an exact copy leaves: float coordinates
+// (an STL file) leave about 2e-8, noise of 5e-4 of the largest side about 3e-4.
+constexpr double kExactPairs = 1e-6;
+
+// `suspect_edges`: the suspect's connectivity, when it has faces (pairs then also grow along edges).
 Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h, const Points& suspect,
-                             Matching m, int rounds) {
+                             Matching m, int rounds, const Adjacency* suspect_edges = nullptr) {
   const LevelData& level = *h.level;
   const int l = h.l;
   Resynchronized r;
@@ -562,6 +637,9 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h
   const int nr = static_cast<int>(level.points.rows());
   std::vector<int> rows, kept_rows;
   Points p, kept_p;
+  // A renumbered copy of this level: as many vertices (its faces were checked by the caller).
+  std::optional<Adjacency> refined_edges;
+  if (l > 0 && suspect_edges && suspect.rows() == nr) refined_edges.emplace(level.op.refined);
   int previous = -1;
   for (int round = 0; round < rounds; ++round) {
     if (round > 0) {
@@ -571,6 +649,18 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h
       const Points estimate = h.apply(r.points);
       Matching next = m;
       mutual_pairs(estimate, PointGrid(estimate), suspect, &next);
+      if (refined_edges) {
+        // Seeds: the pairs the estimate explains to float precision. A noisy copy has none, and
+        // keeps its mutual pairs: with noise a pair may be a neighbour's, and growth from it
+        // would carry the mistake along the edges (a noisy STL copy of fandisk_quads, seeded with
+        // the pairs in line, lost its payload).
+        std::vector<int> seeds;
+        for (int j = 0; j < nr; ++j)
+          if (next.suspect_of[j] >= 0 &&
+              (estimate.row(j) - cur.row(next.suspect_of[j])).norm() <= kExactPairs * ctx.diagonal)
+            seeds.push_back(j);
+        grow_pairs(*refined_edges, *suspect_edges, estimate, cur, seeds, &next);
+      }
       if (next.matched < previous || next.suspect_of == m.suspect_of) break;
       m = std::move(next);
     }
@@ -785,14 +875,19 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
     if (l == 0) r.residual_rms = rms_rows(r.points, ctx.control.points) / ctx.diagonal;
     return r;
   }
-  // Same vertices, numbering lost (STL welding, re-export): mutual nearest neighbours.
+  // Same vertices, numbering lost (STL welding, re-export): mutual nearest neighbours, then
+  // growth along the edges (grow_pairs).
+  std::optional<Adjacency> suspect_edges;
   for (int l = 0; l <= top && !o.force_surface_fit; ++l) {
     const double nr = static_cast<double>(ctx.vertex_counts[static_cast<size_t>(l)]);
     if (std::abs(ns - nr) > o.count_tolerance * nr) continue;
     const LevelData& level = ctx.level(l);
     Matching m = match_vertices(level, suspect.points, o);
     if (m.matched < o.min_start_fraction * nr) continue;
-    Resynchronized r = from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m, o.matching_rounds);
+    if (!suspect_edges && l > 0 && ns == static_cast<int>(nr)) suspect_edges.emplace(suspect);
+    const Adjacency* edges = suspect_edges ? &*suspect_edges : nullptr;
+    Resynchronized r =
+        from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m, o.matching_rounds, edges);
     // A copy that was only renumbered (welded STL, re-export) is already in the original's
     // frame, and a similarity fitted to its pairs with the original's vertices takes in the
     // mark's lowest frequencies (fandisk: scale 0.998, residual 3.7e-4 of the diagonal, p 1e-30
@@ -809,7 +904,7 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
       Matching m0 = match_vertices(level, suspect.points, same_frame);
       if (m0.matched >= o.min_start_fraction * nr) {
         Resynchronized r0 =
-            from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m0, o.matching_rounds);
+            from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m0, o.matching_rounds, edges);
         if (r0.matched_fraction >= r.matched_fraction &&
             (r0.residual_rms < kClearlyBetter * r.residual_rms || r0.residual_rms <= kExact)) {
           r = std::move(r0);
@@ -823,7 +918,7 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
       // this leak arrives here rather than in the same-numbering branch. Same test as there; a
       // hypothesis that pairs fewer vertices does not win by its smaller residual.
       Resynchronized alt = from_matching(ctx, Hypothesis{&level, &ctx.level(l - 1), l, true},
-                                         suspect.points, m, o.matching_rounds);
+                                         suspect.points, m, o.matching_rounds, edges);
       if (alt.matched_fraction >= r.matched_fraction && alt.residual_rms < r.residual_rms) r = std::move(alt);
     }
     if (r.matched_fraction < o.min_matched_fraction) continue;
