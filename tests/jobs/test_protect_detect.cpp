@@ -218,7 +218,9 @@ TEST(ProtectDetectStl, IssuedStlCopiesOfABladeArePairedExactly) {
   for (int i = 0; i < 4; ++i) {
     const CopyCandidate& c = copies[static_cast<std::size_t>(i)];
     write_mesh(make_copy_files(asset, make_copy(asset, c.key, c.nonce, c.payload, c.settings), {}, true).decoded, stl);
-    const Mesh leaked = read_mesh(stl);
+    // In the asset's frame, as the daemon hands a suspect over (service/handlers.cpp, align_to).
+    Mesh leaked = read_mesh(stl);
+    apply(asset.normalization, leaked.points);
     const Resynchronized r = resynchronize_suspect(ctx, leaked);
     EXPECT_EQ(r.method, "subdivided") << i;
     EXPECT_EQ(r.matched_fraction, 1.0) << i;
