@@ -626,6 +626,18 @@ constexpr double kClearlyBetter = 0.5, kExact = 1e-7;
 // (an STL file) leave about 2e-8, noise of 5e-4 of the largest side about 3e-4.
 constexpr double kExactPairs = 1e-6;
 
+// Whether the suspect's bounding box is the level's within kSameFrame of the diagonal at both
+// corners: a copy only renumbered is (its mark moves vertices by about 1e-3 of the diagonal), a
+// moved one is not, and pairing it unmoved only pays for nearest-vertex queries far from every
+// original vertex (a blade copy scaled by 3 and shifted: 4.0 s of detection).
+constexpr double kSameFrame = 0.05;
+bool in_same_frame(const Points& original, const Points& suspect, double diagonal) {
+  if (suspect.rows() == 0) return false;
+  const double lo = (original.colwise().minCoeff() - suspect.colwise().minCoeff()).norm();
+  const double hi = (original.colwise().maxCoeff() - suspect.colwise().maxCoeff()).norm();
+  return std::max(lo, hi) <= kSameFrame * diagonal;
+}
+
 // `suspect_edges`: the suspect's connectivity, when it has faces (pairs then also grow along edges).
 Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h, const Points& suspect,
                              Matching m, int rounds, const Adjacency* suspect_edges = nullptr) {
@@ -902,7 +914,7 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
     // (fandisk_quads at 3a85671: 3.0e-4 unmoved, 4.4e-4 aligned) the aligned one recovered more
     // of the mark (p 1e-51 against 2e-31).
     bool unmoved = false;
-    if (o.align) {
+    if (o.align && in_same_frame(level.points, suspect.points, ctx.diagonal)) {
       ResyncOptions same_frame = o;
       same_frame.align = false;
       Matching m0 = match_vertices(level, suspect.points, same_frame);
