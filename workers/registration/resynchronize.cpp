@@ -424,7 +424,8 @@ void mutual_pairs(const Points& target, const PointGrid& target_grid, const Poin
   }
 }
 
-// Vertex neighbours along face sides, ascending (compressed rows).
+// Vertex neighbours along face sides, ascending (compressed rows): unique_edges is sorted, so
+// each vertex receives its smaller neighbours first, then its larger ones, each in order.
 struct Adjacency {
   std::vector<int> offsets, list;
   explicit Adjacency(const Mesh& mesh) : offsets(static_cast<std::size_t>(mesh.num_vertices()) + 1, 0) {
@@ -434,9 +435,14 @@ struct Adjacency {
     list.resize(static_cast<std::size_t>(offsets.back()));
     std::vector<int> fill(offsets.begin(), offsets.end() - 1);
     for (const auto& [a, b] : edges) list[static_cast<std::size_t>(fill[a]++)] = b, list[static_cast<std::size_t>(fill[b]++)] = a;
-    for (std::size_t v = 0; v + 1 < offsets.size(); ++v)
-      std::sort(list.begin() + offsets[v], list.begin() + offsets[v + 1]);
   }
+};
+
+// A renumbered copy's connectivity and that of the level it has as many vertices as: pairs then
+// also grow along the edges (grow_pairs).
+struct EdgesOfBoth {
+  const Adjacency& refined;
+  const Adjacency& suspect;
 };
 
 // A renumbered copy (a welded STL of a decoded file) keeps the refined mesh's connectivity. The
@@ -638,9 +644,10 @@ bool in_same_frame(const Points& original, const Points& suspect, double diagona
   return std::max(lo, hi) <= kSameFrame * diagonal;
 }
 
-// `suspect_edges`: the suspect's connectivity, when it has faces (pairs then also grow along edges).
+// `edges`: given for a suspect with as many vertices as the level (pairs then also grow along
+// the edges).
 Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h, const Points& suspect,
-                             Matching m, int rounds, const Adjacency* suspect_edges = nullptr) {
+                             Matching m, int rounds, const EdgesOfBoth* edges = nullptr) {
   const LevelData& level = *h.level;
   const int l = h.l;
   Resynchronized r;
@@ -653,9 +660,6 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h
   const int nr = static_cast<int>(level.points.rows());
   std::vector<int> rows, kept_rows;
   Points p, kept_p;
-  // A renumbered copy of this level: as many vertices (its faces were checked by the caller).
-  std::optional<Adjacency> refined_edges;
-  if (l > 0 && suspect_edges && suspect.rows() == nr) refined_edges.emplace(level.op.refined);
   int previous = -1;
   for (int round = 0; round < rounds; ++round) {
     if (round > 0) {
@@ -665,7 +669,7 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h
       const Points estimate = h.apply(r.points);
       Matching next = m;
       mutual_pairs(estimate, PointGrid(estimate), suspect, &next);
-      if (refined_edges) {
+      if (edges) {
         // Seeds: the pairs the estimate explains to float precision. A noisy copy has none, and
         // keeps its mutual pairs: with noise a pair may be a neighbour's, and growth from it
         // would carry the mistake along the edges (a noisy STL copy of fandisk_quads, seeded with
@@ -675,7 +679,7 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h
           if (next.suspect_of[j] >= 0 &&
               (estimate.row(j) - cur.row(next.suspect_of[j])).norm() <= kExactPairs * ctx.diagonal)
             seeds.push_back(j);
-        grow_pairs(*refined_edges, *suspect_edges, estimate, cur, seeds, &next);
+        grow_pairs(edges->refined, edges->suspect, estimate, cur, seeds, &next);
       }
       if (next.matched < previous || next.suspect_of == m.suspect_of) break;
       m = std::move(next);
@@ -893,15 +897,22 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
   }
   // Same vertices, numbering lost (STL welding, re-export): mutual nearest neighbours, then
   // growth along the edges (grow_pairs).
-  std::optional<Adjacency> suspect_edges;
+  std::optional<Adjacency> suspect_edges, refined_edges;
   for (int l = 0; l <= top && !o.force_surface_fit; ++l) {
     const double nr = static_cast<double>(ctx.vertex_counts[static_cast<size_t>(l)]);
     if (std::abs(ns - nr) > o.count_tolerance * nr) continue;
     const LevelData& level = ctx.level(l);
     Matching m = match_vertices(level, suspect.points, o);
     if (m.matched < o.min_start_fraction * nr) continue;
-    if (!suspect_edges && l > 0 && ns == static_cast<int>(nr)) suspect_edges.emplace(suspect);
-    const Adjacency* edges = suspect_edges ? &*suspect_edges : nullptr;
+    // Built once for the level and shared by its hypotheses (the re-subdivided one has the same
+    // topology and numbering).
+    std::optional<EdgesOfBoth> both;
+    if (l > 0 && ns == static_cast<int>(nr)) {
+      if (!suspect_edges) suspect_edges.emplace(suspect);
+      refined_edges.emplace(level.op.refined);
+      both.emplace(EdgesOfBoth{*refined_edges, *suspect_edges});
+    }
+    const EdgesOfBoth* edges = both ? &*both : nullptr;
     Resynchronized r =
         from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m, o.matching_rounds, edges);
     // A copy that was only renumbered (welded STL, re-export) is already in the original's
