@@ -182,6 +182,14 @@ struct E2E : ::testing::Test {
     fs::rename(drop / "detect" / ("." + as + ".tmp"), drop / "detect" / as);
   }
   std::string log() { return slurp(dir / "meshmarkd.log") + slurp(dir / "meshmarkd.stderr"); }
+  // `meshmark ARGS --config <this test's config>`, output discarded; the exit status.
+  int meshmark_with_config(const std::string& args) {
+    const std::string cmd = std::string(MESHMARK_EXE) + " " + args + " --config " + (dir / "meshmarkd.json").string() +
+                            " >/dev/null";
+    return std::system(cmd.c_str());
+  }
+  // The queue worked off without the daemon (`meshmark run --until-empty --no-drops`).
+  void run_until_empty() { ASSERT_EQ(meshmark_with_config("run --until-empty --no-drops"), 0) << log(); }
 
   fs::path dir, home, drop, out;
 };
@@ -453,17 +461,9 @@ TEST_F(E2E, CopiesLeakedAsIssuedAreAttributed) {
     auto st = store();
     for (std::size_t k = 2; k < customers.size(); ++k) st->add_customer(customers[k], "test");
   }
-  const std::string cfg = (dir / "meshmarkd.json").string(), part = mm::test::shared_mesh("abc7.stl");
-  const auto run = [&] {
-    const std::string cmd = std::string(MESHMARK_EXE) + " run --until-empty --no-drops --config " + cfg + " >/dev/null";
-    ASSERT_EQ(std::system(cmd.c_str()), 0) << log();
-  };
-  for (const auto& c : customers) {
-    const std::string cmd =
-        std::string(MESHMARK_EXE) + " submit protect --config " + cfg + " --customer " + c + " " + part + " >/dev/null";
-    ASSERT_EQ(std::system(cmd.c_str()), 0);
-  }
-  run();
+  const std::string part = mm::test::shared_mesh("abc7.stl");
+  for (const auto& c : customers) ASSERT_EQ(meshmark_with_config("submit protect --customer " + c + " " + part), 0);
+  run_until_empty();
   auto st = store();
   std::map<std::string, std::string> customer_of;  // issued file -> customer
   for (const auto& c : customers) {
@@ -471,10 +471,9 @@ TEST_F(E2E, CopiesLeakedAsIssuedAreAttributed) {
     ASSERT_FALSE(file.empty()) << c;
     EXPECT_EQ(file.extension(), ".stl");
     customer_of[file.filename().string()] = c;
-    const std::string cmd = std::string(MESHMARK_EXE) + " submit detect --config " + cfg + " " + file.string() + " >/dev/null";
-    ASSERT_EQ(std::system(cmd.c_str()), 0);
+    ASSERT_EQ(meshmark_with_config("submit detect " + file.string()), 0);
   }
-  run();
+  run_until_empty();
   const auto dets = st->list_detections();
   ASSERT_EQ(dets.size(), customers.size());
   for (const auto& det : dets) {
@@ -492,15 +491,8 @@ TEST_F(E2E, CopiesLeakedAsIssuedAreAttributed) {
 TEST_F(E2E, MarkFoundWithAnotherPayloadIsInconclusive) {
   MM_REQUIRE_SHARED_MESHES();
   write_config({{"output_format", "stl"}, {"watermark", {{"message_bits", 16}}}});
-  const std::string cfg = (dir / "meshmarkd.json").string();
-  const auto run = [&] {
-    const std::string cmd = std::string(MESHMARK_EXE) + " run --until-empty --no-drops --config " + cfg + " >/dev/null";
-    ASSERT_EQ(std::system(cmd.c_str()), 0) << log();
-  };
-  const std::string protect = std::string(MESHMARK_EXE) + " submit protect --config " + cfg +
-                              " --customer alpha " + mm::test::shared_mesh("abc7.stl") + " >/dev/null";
-  ASSERT_EQ(std::system(protect.c_str()), 0);
-  run();
+  ASSERT_EQ(meshmark_with_config("submit protect --customer alpha " + mm::test::shared_mesh("abc7.stl")), 0);
+  run_until_empty();
   auto st = store();
   const auto copies = st->list_copies();
   ASSERT_EQ(copies.size(), 1u);
@@ -514,9 +506,8 @@ TEST_F(E2E, MarkFoundWithAnotherPayloadIsInconclusive) {
   }
   const fs::path file = output_of(*st, "alpha", "abc7.stl");
   ASSERT_FALSE(file.empty());
-  const std::string detect = std::string(MESHMARK_EXE) + " submit detect --config " + cfg + " " + file.string() + " >/dev/null";
-  ASSERT_EQ(std::system(detect.c_str()), 0);
-  run();
+  ASSERT_EQ(meshmark_with_config("submit detect " + file.string()), 0);
+  run_until_empty();
   const auto dets = st->list_detections();
   ASSERT_EQ(dets.size(), 1u);
   EXPECT_EQ(dets[0].verdict, "inconclusive") << dets[0].details_json.substr(0, 600);
