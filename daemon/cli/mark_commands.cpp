@@ -19,6 +19,7 @@
 #include "cli/key_file.h"
 #include "cli/mesh_files.h"
 #include "codec/stream.h"
+#include "jobs/detect.h"
 #include "meshio/normalize.h"
 #include "meshio/read_mesh.h"
 #include "registration/resynchronize.h"
@@ -274,9 +275,16 @@ Resynchronized resync(const ResyncContext& ctx, const Control& c, const Mesh& su
   return resynchronize(ctx, suspect, opts);
 }
 
+// The daemon's rule (jobs::finding_of) in the offline command's words.
 std::string verdict_for(double p, bool message_matches) {
-  if (p < kPresentP && message_matches) return "watermark present";
-  if (p < kPresentP || message_matches) return "inconclusive";
+  switch (jobs::finding_of(p, kPresentP, message_matches)) {
+    case jobs::Finding::present:
+      return "watermark present";
+    case jobs::Finding::inconclusive:
+      return "inconclusive";
+    case jobs::Finding::absent:
+      break;
+  }
   return "no watermark found";
 }
 
@@ -338,6 +346,10 @@ void add_extract_command(CLI::App& app) {
     const NullCalibration cal = calibrate_null(ex.signs, rec.message_bits, ex.correlation, &expected);
     const double verdict_p = std::max(ex.p_value, cal.p);
     const std::string verdict = verdict_for(verdict_p, matches);
+    int wrong_bits = 0;
+    for (std::size_t i = 0; i < expected.size() && i < ex.message.size(); ++i) wrong_bits += expected[i] != ex.message[i];
+    const std::string reason = jobs::inconclusive_reason("the copy", "p", verdict_p, kPresentP, wrong_bits,
+                                                         static_cast<int>(expected.size()));
 
     using nlohmann::ordered_json;
     ordered_json j{
@@ -374,6 +386,7 @@ void add_extract_command(CLI::App& app) {
           {"matches_record", matches}}},
         {"verdict", verdict},
         {"p_threshold", kPresentP}};
+    if (!reason.empty()) j["reason"] = reason;
     if (a->json) {
       std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
       return;
@@ -388,6 +401,7 @@ void add_extract_command(CLI::App& app) {
     o << ", -log10 p = " << std::min(ex.neg_log10_p, cal.neg_log10_p) << " (exact " << ex.neg_log10_p
       << ", calibrated " << cal.neg_log10_p << "); present needs p < " << kPresentP
       << " and the recorded message)\n";
+    if (!reason.empty()) o << "reason: " << reason << "\n";
     o << "message: " << ordered_json(decoded).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)
       << (matches ? " (as recorded)" : " (differs from the record)") << ", bit error rate " << ex.bit_error_rate << "\n";
     o << "correlation: " << ex.correlation << " (" << ex.agreements << " of " << ex.compared << " signs agree)\n";

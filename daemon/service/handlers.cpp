@@ -626,18 +626,20 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
     for (const auto& c : best_t->copies)
       if (c.id == best->copy_id) {
         bits = static_cast<int>(c.payload_hex.size()) * 4;
-        if (best->corrected_p < cfg.p_threshold && best->payload_matches) {
-          d.verdict = "attributed";
-          d.copy_id = c.id;
-          d.customer_id = c.customer_id;
-        } else if (best->corrected_p < cfg.p_threshold) {
-          // The copy's mark is there but its payload did not decode whole: neither an attribution
-          // nor "no watermark", which would tell a legal team the opposite of the evidence.
-          d.verdict = "inconclusive";
-          const int wrong = static_cast<int>(std::lround(best->bit_error_rate * bits));
-          inconclusive_reason = "copy " + std::to_string(c.id) + "'s mark matches (corrected p " +
-                                fmt::format("{:.3g}", best->corrected_p) + ") but its payload decoded with " +
-                                std::to_string(wrong) + " of " + std::to_string(bits) + " bits wrong";
+        const int wrong = static_cast<int>(std::lround(best->bit_error_rate * bits));
+        switch (jobs::finding_of(best->corrected_p, cfg.p_threshold, best->payload_matches)) {
+          case jobs::Finding::present:
+            d.verdict = "attributed";
+            d.copy_id = c.id;
+            d.customer_id = c.customer_id;
+            break;
+          case jobs::Finding::inconclusive:
+            d.verdict = "inconclusive";
+            inconclusive_reason = jobs::inconclusive_reason("copy " + std::to_string(c.id), "corrected p",
+                                                            best->corrected_p, cfg.p_threshold, wrong, bits);
+            break;
+          case jobs::Finding::absent:
+            break;
         }
       }
     d.decoded_payload_hex = jobs::payload_hex(best->decoded_payload, bits);

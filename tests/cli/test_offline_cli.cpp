@@ -164,6 +164,24 @@ TEST(CliMark, FandiskUnattackedExactWrongKeyNullDeterministic) {
   EXPECT_GT(wrong["null_sd"].get<double>(), 0);
   EXPECT_FALSE(wrong["message"]["matches_record"].get<bool>());
   EXPECT_EQ(wrong["verdict"], "no watermark found");
+  EXPECT_FALSE(right.contains("reason"));
+  EXPECT_FALSE(wrong.contains("reason"));
+
+  // Alice's copy against a record whose message differs in one bit ('e' -> 'd'): her mark is
+  // there but not that message, which is the daemon's "inconclusive" (jobs::finding_of), with
+  // its reason.
+  {
+    json rec = json::parse(slurp(a + ".mmrec.json"));
+    ASSERT_EQ(rec["watermark"]["message"], "copy:alice");
+    rec["watermark"]["message"] = "copy:alicd";
+    const std::string other = s / "other.mmrec.json";
+    std::ofstream(other) << rec.dump();
+    const json off = extract_json(s, original, a, alice, other);
+    EXPECT_EQ(off["verdict"], "inconclusive") << off.dump();
+    EXPECT_EQ(off["reason"].get<std::string>().rfind("the copy's mark matches (p ", 0), 0u) << off.dump();
+    EXPECT_NE(off["reason"].get<std::string>().find("but its payload decoded with 1 of "), std::string::npos)
+        << off.dump();
+  }
 
   // The original itself carries no mark.
   const json clean = extract_json(s, original, original, alice, a + ".mmrec.json");

@@ -528,6 +528,38 @@ TEST_F(E2E, MarkFoundWithAnotherPayloadIsInconclusive) {
   EXPECT_TRUE(seen);
 }
 
+// The other half of the rule: a copy's payload decoded whole while its mark's p is not below
+// the threshold (here a threshold no copy can reach) is inconclusive too, not "no watermark".
+TEST_F(E2E, PayloadWithoutASignificantMarkIsInconclusive) {
+  MM_REQUIRE_SHARED_MESHES();
+  write_config({{"output_format", "stl"}, {"watermark", {{"message_bits", 16}}}, {"detect", {{"p_threshold", 1e-300}}}});
+  ASSERT_EQ(meshmark_with_config("submit protect --customer alpha " + mm::test::shared_mesh("abc7.stl")), 0);
+  run_until_empty();
+  auto st = store();
+  const fs::path file = output_of(*st, "alpha", "abc7.stl");
+  ASSERT_FALSE(file.empty());
+  ASSERT_EQ(meshmark_with_config("submit detect " + file.string()), 0);
+  run_until_empty();
+  const auto dets = st->list_detections();
+  ASSERT_EQ(dets.size(), 1u);
+  EXPECT_EQ(dets[0].verdict, "inconclusive") << dets[0].details_json.substr(0, 600);
+  EXPECT_FALSE(dets[0].customer_id.has_value());
+  ASSERT_TRUE(dets[0].p_value.has_value());
+  EXPECT_GT(*dets[0].p_value, 1e-300);
+  EXPECT_LT(*dets[0].p_value, 1e-6);  // a mark any usual threshold would take
+  bool seen = false;
+  for (const auto& j : st->list_jobs())
+    if (j.kind == "detect") {
+      const json r = json::parse(j.result_json);
+      EXPECT_EQ(r["verdict"], "inconclusive") << r.dump();
+      EXPECT_FALSE(r.contains("customer")) << r.dump();
+      EXPECT_NE(r.value("reason", "").find("payload decoded whole but its mark's corrected p"), std::string::npos)
+          << r.dump();
+      seen = true;
+    }
+  EXPECT_TRUE(seen);
+}
+
 TEST_F(E2E, BatchRunUntilEmptyWithoutDaemon) {
   MM_REQUIRE_SHARED_MESHES();
   drop_mesh("protect/alpha", "abc7.stl");

@@ -377,3 +377,21 @@ TEST(NullCalibration, NormalTailMatchesClosedFormsAndSurvivesUnderflow) {
 
 }  // namespace
 }  // namespace mm::jobs
+
+// One rule for every verdict (daemon, extract, detect_copy): a mark and its payload name the copy;
+// either alone is inconclusive with a reason that says which half is missing; neither is absent.
+TEST(Finding, MarkAndPayloadTogetherNameACopyEitherAloneIsInconclusive) {
+  using mm::jobs::Finding;
+  EXPECT_EQ(mm::jobs::finding_of(1e-9, 1e-6, true), Finding::present);
+  EXPECT_EQ(mm::jobs::finding_of(1e-9, 1e-6, false), Finding::inconclusive);
+  EXPECT_EQ(mm::jobs::finding_of(1e-3, 1e-6, true), Finding::inconclusive);
+  EXPECT_EQ(mm::jobs::finding_of(1e-3, 1e-6, false), Finding::absent);
+  // The threshold is strict: a p equal to it is not a mark.
+  EXPECT_EQ(mm::jobs::finding_of(1e-6, 1e-6, true), Finding::inconclusive);
+  EXPECT_EQ(mm::jobs::inconclusive_reason("copy 4", "corrected p", 1.26e-24, 1e-6, 1, 32),
+            "copy 4's mark matches (corrected p 1.26e-24) but its payload decoded with 1 of 32 bits wrong");
+  EXPECT_EQ(mm::jobs::inconclusive_reason("the copy", "p", 0.00321, 1e-6, 0, 24),
+            "the copy's payload decoded whole but its mark's p 0.00321 is not below 1e-06");
+  EXPECT_EQ(mm::jobs::inconclusive_reason("copy 4", "corrected p", 1e-9, 1e-6, 0, 32), "");
+  EXPECT_EQ(mm::jobs::inconclusive_reason("copy 4", "corrected p", 0.5, 1e-6, 7, 32), "");
+}

@@ -1,6 +1,7 @@
 #include "jobs/detect.h"
 
 #include <algorithm>
+#include <cstdio>
 
 #include <Eigen/SparseCholesky>
 #include <unordered_set>
@@ -55,6 +56,32 @@ Resynchronized resynchronize_suspect(const ResyncContext& context, const Mesh& s
   return r;
 }
 
+Finding finding_of(double p, double p_threshold, bool payload_matches) {
+  const bool mark = p < p_threshold;
+  if (mark && payload_matches) return Finding::present;
+  if (mark || payload_matches) return Finding::inconclusive;
+  return Finding::absent;
+}
+
+namespace {
+std::string three_digits(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", x);
+  return buf;
+}
+}  // namespace
+
+std::string inconclusive_reason(const std::string& what, const std::string& p_name, double p, double p_threshold,
+                                int wrong_bits, int bits) {
+  const bool matches = wrong_bits == 0;
+  if (finding_of(p, p_threshold, matches) != Finding::inconclusive) return {};
+  if (matches)
+    return what + "'s payload decoded whole but its mark's " + p_name + " " + three_digits(p) + " is not below " +
+           three_digits(p_threshold);
+  return what + "'s mark matches (" + p_name + " " + three_digits(p) + ") but its payload decoded with " +
+         std::to_string(wrong_bits) + " of " + std::to_string(bits) + " bits wrong";
+}
+
 Verdict detect_copy(const PreparedAsset& asset, const Points& registered,
                     const std::vector<CopyCandidate>& copies, double p_threshold) {
   Verdict v;
@@ -92,7 +119,7 @@ Verdict detect_copy(const PreparedAsset& asset, const Points& registered,
       if (a.corrected_p != b.corrected_p) return a.corrected_p < b.corrected_p;
       return a.correlation > b.correlation;
     });
-    v.attributed = v.best.corrected_p < p_threshold && v.best.payload_matches;
+    v.attributed = finding_of(v.best.corrected_p, p_threshold, v.best.payload_matches) == Finding::present;
   }
   return v;
 }

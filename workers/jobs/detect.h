@@ -64,6 +64,20 @@ ResyncContext make_resync_context(const PreparedAsset& asset);
 Resynchronized resynchronize_suspect(const ResyncContext& context, const Mesh& suspect,
                                      const ResyncOptions& options = {});
 
+// What a copy's score says: the one rule behind every verdict (detect_copy's `attributed`, the
+// daemon's detect jobs, `meshmark extract`). Present: its mark matches (p below the threshold)
+// and its payload decodes whole. Inconclusive: one of the two without the other -- a mark whose
+// payload lost bits (a damaged copy), or a payload without a significant mark -- which names no
+// customer and does not say "no watermark" either, the opposite of half the evidence. Absent:
+// neither.
+enum class Finding { present, inconclusive, absent };
+Finding finding_of(double p, double p_threshold, bool payload_matches);
+// Why a finding is inconclusive, for a report: "copy 4's mark matches (corrected p 1.26e-24) but
+// its payload decoded with 1 of 32 bits wrong" (`what` "copy 4", `p_name` "corrected p"). Empty
+// for the other findings.
+std::string inconclusive_reason(const std::string& what, const std::string& p_name, double p, double p_threshold,
+                                int wrong_bits, int bits);
+
 // `registered`: the suspect resynchronised to asset.control (resynchronize(...).points).
 Verdict detect_copy(const PreparedAsset& asset, const Points& registered,
                     const std::vector<CopyCandidate>& copies, double p_threshold);
