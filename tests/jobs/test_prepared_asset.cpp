@@ -79,6 +79,9 @@ TEST(PreparedAsset, CacheKeyNamesEveryCompressionOption) {
   // The rounds' schedule comes from compress.cpp's constants, and names them.
   EXPECT_NE(k.find(rounds_schedule_key(p.compression)), std::string::npos) << k;
   EXPECT_NE(rounds_schedule_key(p.compression).find("first-warm-growth="), std::string::npos);
+  // So does the fit's sampling.
+  EXPECT_NE(k.find(mm::fit_sampling_key()), std::string::npos) << k;
+  EXPECT_NE(mm::fit_sampling_key().find("crease-spacing="), std::string::npos);
   PrepareParams cap;
   cap.max_control_vertices = 2000;  // refuses, never changes a result
   EXPECT_EQ(cap.key(), k);

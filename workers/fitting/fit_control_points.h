@@ -7,6 +7,7 @@
 #pragma once
 #include <cstdint>
 #include <memory>
+#include <string>
 
 #include "fitting/sharp_features.h"
 #include "meshio/mesh.h"
@@ -72,6 +73,10 @@ FitResult fit_control_points(const Mesh& control, const Mesh& target,
 // The same against a prepared target; throws std::invalid_argument when `options` samples
 // differently from those the target was prepared with.
 FitResult fit_control_points(const Mesh& control, const FitTarget& target, const FitOptions& options = {});
+
+// How the fit samples its target, as a cache key part (";crease-spacing=1/600"): a stored
+// polyhedron fitted from other samples is fitted again (jobs/prepared_asset.cpp).
+std::string fit_sampling_key();
 
 // The same distance statistics for a given control mesh, without moving anything.
 FitStats measure_fit(const Mesh& control, int levels, const Mesh& target);

@@ -137,11 +137,12 @@ std::string PrepareParams::key() const {
   // fitted before coarse rounds and the fit's reweighting (";rounds=warm" alone) and rows fitted
   // under earlier schedules without coarsening (";rounds=coarse-warm;fit=reweighted", then
   // ";rounds=coarse-warm;warm-quads=0;bisect=6;fit=reweighted"; now rounds_schedule_key()
-  // spells out compress.cpp's constants, so a change to them fits assets again).
+  // spells out compress.cpp's constants, so a change to them fits assets again); rows fitted
+  // with three crease samples on every sharp edge (before ";crease-spacing=", fit_sampling_key()).
   const CompressOptions& c = compression;
   return "prepare-v2;compress;verify=dense;tolerance=" + shortest_text(c.tolerance) + ";max_vertices=" + std::to_string(c.max_vertices) +
          ";levels=" + std::to_string(c.levels) + ";angle=" + shortest_text(c.angle_degrees) +
-         ";max_rounds=" + std::to_string(c.max_rounds) + (c.rail_quads ? ";quads=rail" : "") + rounds_schedule_key(c) +
+         ";max_rounds=" + std::to_string(c.max_rounds) + (c.rail_quads ? ";quads=rail" : "") + rounds_schedule_key(c) + fit_sampling_key() +
          (c.seed != 1 ? ";seed=" + std::to_string(c.seed) : "") + fallback_key(fallback_angles) +
          ";basis=dense-kirchhoff";
 }
