@@ -29,13 +29,13 @@ double diagonal_of(const Points& p) {
 }
 
 // Crease samples along a sharp edge are at least the diagonal / kCreaseSpacing apart: three
-// interior points on an edge that long (three times the spacing) or longer, as before, fewer on
-// shorter ones. A crease tessellated finer than that is fitted no better for more samples, and
-// they were the fit's largest share of queries on a part tessellated finely along its creases:
-// abc5 split 1:4 (20,320 triangles) 20,620 crease samples an iteration, now 10,320 (abc5 itself
-// keeps its 10,300). The shared parts' edges are mostly longer: at 1/600, 6 of 9 fit exactly as
-// before on the protect path, bracket-3, abc5 and abc8 differently (docs/compression.md,
-// "Crease samples spaced"); at 1/300 abc5 dropped to 2,740 and 4 parts changed, +3.9 % bytes.
+// interior points on an edge three times that long or longer, as before, fewer on shorter ones.
+// A crease tessellated finer is fitted no better for more samples, which weighed its creases
+// over its surfaces and were the largest share of the fit's queries on a finely tessellated
+// part: abc5 (rims of short edges) 10,300 -> 2,740 samples, abc5 split 1:4 20,620 -> 5,500,
+// bracket-3 and abc8 a few fewer, the other shared parts none (docs/compression.md, "Crease
+// samples spaced": the default command's streams 1.4 % smaller, abc5's 14 %; at 1/300, 7 of 9
+// parts changed and the protect path's streams grew 3.9 %).
 constexpr double kCreaseSpacing = 600;
 
 // Target samples: every vertex, area-weighted random points on faces, and points along the
