@@ -26,7 +26,7 @@ Resynchronized resynchronize_suspect(const ResyncContext& context, const Mesh& s
   if (r.method != "subdivided" || !r.order_recovered || r.level < 1 || r.resubdivided) return r;
   const SparseOperator& S = context.subdivision(r.level).S;
   const Points moved = r.to_control_frame.apply(suspect.points);
-  const PointGrid grid(moved);
+  const PointTree tree(moved);
   Eigen::SparseMatrix<double> St = S.transpose();
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(St * S);
   if (solver.info() != Eigen::Success) return r;
@@ -36,7 +36,7 @@ Resynchronized resynchronize_suspect(const ResyncContext& context, const Mesh& s
   auto match = [&](const Points& control) {
     Points predicted = S * control;
     for (Eigen::Index i = 0; i < predicted.rows(); ++i) {
-      pick[static_cast<std::size_t>(i)] = grid.nearest(predicted.row(i).transpose());
+      pick[static_cast<std::size_t>(i)] = tree.nearest(predicted.row(i).transpose());
       matched.row(i) = moved.row(pick[static_cast<std::size_t>(i)]);
     }
     return std::sqrt((predicted - matched).rowwise().squaredNorm().mean()) / diag;

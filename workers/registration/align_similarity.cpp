@@ -142,10 +142,10 @@ IcpResult icp_similarity(const Points& moving, const ClosestPoint& closest, cons
       d2[i] = (c - q).squaredNorm();
     }
     if (m > 0) {
-      const PointGrid grid(cur);
+      const PointTree tree(cur);
       for (Eigen::Index k = 0; k < m; ++k) {
         double dd = 0;
-        const int j = grid.nearest(fixed_samples.row(k).transpose(), &dd);
+        const int j = tree.nearest(fixed_samples.row(k).transpose(), &dd);
         src.row(n + k) = moving.row(j);
         dst.row(n + k) = fixed_samples.row(k);
         d2[n + k] = dd;

@@ -85,7 +85,7 @@ struct LevelData {
   SparseOperator smooth_step;                // level L-1 -> L, creases and corners ignored
   std::vector<int> smooth_order;  // refined vertex in a file's one-step numbering -> level-L index
   Eigen::SimplicialLDLT<SpMat> smooth_normal;  // T^T T
-  std::unique_ptr<PointGrid> grid;
+  std::unique_ptr<PointTree> tree;
   std::vector<int> face_offsets, face_list;  // vertex -> incident refined faces
 };
 
@@ -200,7 +200,7 @@ std::unique_ptr<LevelData> ResyncContext::Impl::build_level(int l) const {
     if (d->normal.info() != Eigen::Success)
       throw InputError("control polyhedron", "subdivision normal equations are singular at level " + std::to_string(l));
   }
-  d->grid = std::make_unique<PointGrid>(d->points);
+  d->tree = std::make_unique<PointTree>(d->points);
   if (l > 0) {
     const LevelData& below = level(l - 1);
     Mesh untagged = below.op.refined;
@@ -221,7 +221,7 @@ std::unique_ptr<LevelData> ResyncContext::Impl::build_level(int l) const {
       const double tolerance = 1e-18 * diagonal * diagonal;
       for (int j = 0; j < nr && bijective; ++j) {
         double d2 = 0;
-        const int k = d->grid->nearest(same.row(j).transpose(), &d2);
+        const int k = d->tree->nearest(same.row(j).transpose(), &d2);
         bijective = k >= 0 && d2 <= tolerance && !taken[static_cast<size_t>(k)];
         if (bijective) order[static_cast<size_t>(j)] = k, taken[static_cast<size_t>(k)] = 1;
       }
@@ -263,7 +263,7 @@ std::unique_ptr<LevelData> ResyncContext::Impl::build_level(int l) const {
   std::size_t bytes = sizeof(LevelData) + bytes_of(d->op.S) + bytes_of(d->op.refined) +
                       static_cast<std::size_t>(d->points.size()) * sizeof(double) + bytes_of(d->normal) +
                       bytes_of(d->smooth_step) + d->smooth_order.capacity() * sizeof(int) +
-                      bytes_of(d->smooth_normal) + d->grid->memory_bytes() +
+                      bytes_of(d->smooth_normal) + d->tree->memory_bytes() +
                       (d->face_offsets.capacity() + d->face_list.capacity()) * sizeof(int);
   for (const auto& step : d->op.steps) bytes += bytes_of(step);
   built_bytes.fetch_add(bytes, std::memory_order_relaxed);
@@ -408,20 +408,25 @@ struct Matching {
 };
 
 // Mutual nearest neighbours between the aligned suspect vertices and `target` (the refined
-// vertices, original or estimated), indexed by `target_grid`.
-void mutual_pairs(const Points& target, const PointGrid& target_grid, const Points& suspect, Matching* m) {
-  const Points cur = m->transform.apply(suspect);
-  const PointGrid suspect_grid(cur);
+// vertices, original or estimated), indexed by `target_tree`.
+// `cur`: the suspect's vertices under m->transform, indexed by `cur_tree` (a caller pairing
+// them with several targets builds it once).
+void mutual_pairs(const Points& target, const PointTree& target_tree, const Points& cur, const PointTree& cur_tree,
+                  Matching* m) {
   const int nr = static_cast<int>(target.rows());
   m->suspect_of.assign(static_cast<size_t>(nr), -1);
   m->matched = 0;
   for (int j = 0; j < nr; ++j) {
-    const int i = suspect_grid.nearest(target.row(j).transpose());
-    if (i >= 0 && target_grid.nearest(cur.row(i).transpose()) == j) {
+    const int i = cur_tree.nearest(target.row(j).transpose());
+    if (i >= 0 && target_tree.nearest(cur.row(i).transpose()) == j) {
       m->suspect_of[j] = i;
       ++m->matched;
     }
   }
+}
+void mutual_pairs(const Points& target, const PointTree& target_tree, const Points& suspect, Matching* m) {
+  const Points cur = m->transform.apply(suspect);
+  mutual_pairs(target, target_tree, cur, PointTree(cur), m);
 }
 
 // Vertex neighbours along face sides, ascending (compressed rows): unique_edges is sorted, so
@@ -550,9 +555,9 @@ Similarity turn_search(const LevelData& level, const Points& suspect, const Simi
 
 Matching match_vertices(const LevelData& level, const Points& suspect, const ResyncOptions& o) {
   Matching m;
-  const PointGrid& grid = *level.grid;
-  const ClosestPoint nearest_vertex = [&grid](const Eigen::Vector3d& q) {
-    return Eigen::Vector3d(grid.points().row(grid.nearest(q)).transpose());
+  const PointTree& tree = *level.tree;
+  const ClosestPoint nearest_vertex = [&tree](const Eigen::Vector3d& q) {
+    return tree.point(tree.nearest(q));
   };
   if (o.align) {
     const Points moving = strided(suspect, o.alignment_samples);
@@ -562,7 +567,7 @@ Matching match_vertices(const LevelData& level, const Points& suspect, const Res
   // Refit the similarity on all mutual pairs (7 DOF from every vertex), then pair again.
   const auto pair_and_refit = [&](Matching& x) {
     for (int round = 0; round < 2; ++round) {
-      mutual_pairs(level.points, *level.grid, suspect, &x);
+      mutual_pairs(level.points, *level.tree, suspect, &x);
       if (!o.align || x.matched < 3) break;
       Points src(x.matched, 3), dst(x.matched, 3);
       int k = 0;
@@ -657,6 +662,7 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h
   r.resubdivided = h.resubdivided;
   r.to_control_frame = m.transform;
   const Points cur = m.transform.apply(suspect);
+  std::optional<PointTree> cur_tree;  // built by the first round that pairs again
   const int nr = static_cast<int>(level.points.rows());
   std::vector<int> rows, kept_rows;
   Points p, kept_p;
@@ -668,7 +674,9 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h
       // the pairs stop changing (a swap put right leaves the count as it was) or shrink.
       const Points estimate = h.apply(r.points);
       Matching next = m;
-      mutual_pairs(estimate, PointGrid(estimate), suspect, &next);
+      // The transform stays m's, so the suspect's vertices are `cur` in every round.
+      if (!cur_tree) cur_tree.emplace(cur);
+      mutual_pairs(estimate, PointTree(estimate), cur, *cur_tree, &next);
       if (edges) {
         // Seeds: the pairs the estimate explains to float precision. A noisy copy has none, and
         // keeps its mutual pairs: with noise a pair may be a neighbour's, and growth from it
