@@ -7,6 +7,7 @@
 #pragma once
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <vector>
 
 namespace mm {
@@ -40,6 +41,18 @@ inline void child_box_distances(const BvhChildBoxes& cb, const double* p, double
   }
   left = d[0];
   right = d[1];
+}
+
+// Squared distance from p to the box [lo, hi]. Each axis's gap is at most that of any point in
+// the box (rounding is monotone), so it never exceeds a contained point's squared distance
+// summed the same way: a search skipping boxes farther than its best skips no tie.
+inline double box_distance2(const double* lo, const double* hi, const double* p) {
+  double d2 = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double e = std::max(std::max(lo[k] - p[k], p[k] - hi[k]), 0.0);
+    d2 += e * e;
+  }
+  return d2;
 }
 
 // One centroid and one box per primitive; leaves hold at most `leaf_size` primitives.

@@ -52,15 +52,6 @@ double ericson2(const double* a, const double* b, const double* c, const double*
   return d2sum;
 }
 
-double box2(const double* lo, const double* hi, const double* p) {
-  double d2 = 0;
-  for (int k = 0; k < 3; ++k) {
-    const double e = std::max(std::max(lo[k] - p[k], p[k] - hi[k]), 0.0);
-    d2 += e * e;
-  }
-  return d2;
-}
-
 }  // namespace
 
 struct TriangleDistanceTree::Impl {
@@ -176,13 +167,13 @@ bool TriangleDistanceTree::within(const Eigen::Vector3d& q, double r, int& hint)
   if (hint >= 0 && hint < static_cast<int>(im.tris.size()) && close(hint)) return true;
   int stack[128];
   int top = 0;
-  if (box2(im.root_lo, im.root_hi, p) <= r2) stack[top++] = 0;
+  if (box_distance2(im.root_lo, im.root_hi, p) <= r2) stack[top++] = 0;
   while (top > 0) {
     const Node& nd = im.nodes[static_cast<size_t>(stack[--top])];
     if (nd.count > 0) {
       for (int j = nd.first; j < nd.first + nd.count; ++j) {
         const Tri& s = im.tris[static_cast<size_t>(j)];
-        if (box2(s.lo, s.hi, p) > r2) continue;
+        if (box_distance2(s.lo, s.hi, p) > r2) continue;
         if (close(j)) {
           hint = j;
           return true;
@@ -244,7 +235,7 @@ double TriangleDistanceTree::squared_distance(const Eigen::Vector3d& q, int& hin
   };
   Entry stack[128];  // at most depth + 1 entries: 48 surface-area levels, then median splits
   int top = 0;
-  stack[top++] = {0, box2(im.root_lo, im.root_hi, p)};
+  stack[top++] = {0, box_distance2(im.root_lo, im.root_hi, p)};
   while (top > 0) {
     const Entry e = stack[--top];
     if (e.d2 > limit) continue;
@@ -253,7 +244,7 @@ double TriangleDistanceTree::squared_distance(const Eigen::Vector3d& q, int& hin
       for (int j = nd.first; j < nd.first + nd.count; ++j) {
         if (j == start) continue;  // measured first
         const Tri& s = im.tris[static_cast<size_t>(j)];
-        if (box2(s.lo, s.hi, p) > limit) continue;
+        if (box_distance2(s.lo, s.hi, p) > limit) continue;
         if (s.prunable) {
           const double dp = s.n[0] * p[0] + s.n[1] * p[1] + s.n[2] * p[2] - s.d;
           if (dp * dp > limit) continue;

@@ -9,18 +9,6 @@ namespace {
 
 constexpr int kLeafSize = 16;
 
-// Squared distance from p to a box. Each axis's gap is at most that of any point in the box
-// (rounding is monotone), so this never exceeds a contained point's squared distance as
-// nearest() computes it: a box is skipped only when none of its points can tie the best.
-double box_distance2(const double* lo, const double* hi, const double* p) {
-  double d2 = 0;
-  for (int k = 0; k < 3; ++k) {
-    const double e = std::max(std::max(lo[k] - p[k], p[k] - hi[k]), 0.0);
-    d2 += e * e;
-  }
-  return d2;
-}
-
 }  // namespace
 
 PointTree::PointTree(const Points& points) {
@@ -29,43 +17,57 @@ PointTree::PointTree(const Points& points) {
   index_.resize(static_cast<size_t>(n));
   std::iota(index_.begin(), index_.end(), 0);
   nodes_.reserve(static_cast<size_t>(4 * (n / kLeafSize + 1)));
+  const auto box_of = [&](int begin, int end, double* lo, double* hi) {
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::numeric_limits<double>::infinity();
+      hi[k] = -std::numeric_limits<double>::infinity();
+    }
+    for (int j = begin; j < end; ++j)
+      for (int k = 0; k < 3; ++k) {
+        const double x = points(index_[static_cast<size_t>(j)], k);
+        lo[k] = std::min(lo[k], x);
+        hi[k] = std::max(hi[k], x);
+      }
+  };
+  box_of(0, n, root_lo_, root_hi_);
   // Depth first, left before right, so a node's left child is the next one.
   struct Pending {
     int begin, end, parent;  // parent: the node whose right child this is (-1: none)
+    double lo[3], hi[3];     // the range's box
   };
-  std::vector<Pending> stack{{0, n, -1}};
+  std::vector<Pending> stack(1);
+  stack[0].begin = 0, stack[0].end = n, stack[0].parent = -1;
+  std::copy(root_lo_, root_lo_ + 3, stack[0].lo);
+  std::copy(root_hi_, root_hi_ + 3, stack[0].hi);
   while (!stack.empty()) {
     const Pending w = stack.back();
     stack.pop_back();
     const int at = static_cast<int>(nodes_.size());
     if (w.parent >= 0) nodes_[static_cast<size_t>(w.parent)].right = at;
-    Node nd;
+    nodes_.emplace_back();
+    Node& nd = nodes_.back();
     nd.begin = w.begin, nd.end = w.end, nd.right = -1;
-    for (int k = 0; k < 3; ++k) {
-      nd.lo[k] = std::numeric_limits<double>::infinity();
-      nd.hi[k] = -std::numeric_limits<double>::infinity();
-    }
-    for (int j = w.begin; j < w.end; ++j)
-      for (int k = 0; k < 3; ++k) {
-        const double x = points(index_[static_cast<size_t>(j)], k);
-        nd.lo[k] = std::min(nd.lo[k], x);
-        nd.hi[k] = std::max(nd.hi[k], x);
-      }
-    nodes_.push_back(nd);
     if (w.end - w.begin <= kLeafSize) continue;
     int axis = 0;
     for (int k = 1; k < 3; ++k)
-      if (nd.hi[k] - nd.lo[k] > nd.hi[axis] - nd.lo[axis]) axis = k;
+      if (w.hi[k] - w.lo[k] > w.hi[axis] - w.lo[axis]) axis = k;
     const int mid = w.begin + (w.end - w.begin) / 2;
     // Ties by index, so the split depends on the points alone.
     std::nth_element(index_.begin() + w.begin, index_.begin() + mid, index_.begin() + w.end, [&](int a, int b) {
       const double xa = points(a, axis), xb = points(b, axis);
       return xa < xb || (xa == xb && a < b);
     });
+    Pending left{w.begin, mid, -1, {}, {}}, right{mid, w.end, at, {}, {}};
+    box_of(left.begin, left.end, left.lo, left.hi);
+    box_of(right.begin, right.end, right.lo, right.hi);
+    for (int k = 0; k < 3; ++k) {
+      nd.children.lo[k][0] = left.lo[k], nd.children.lo[k][1] = right.lo[k];
+      nd.children.hi[k][0] = left.hi[k], nd.children.hi[k][1] = right.hi[k];
+    }
+    nd.right = 0;  // an inner node; set when the right child is made
     // Right pushed first: popped after the whole left subtree.
-    nodes_.back().right = 0;  // an inner node; set when the right child is made
-    stack.push_back({mid, w.end, at});
-    stack.push_back({w.begin, mid, -1});
+    stack.push_back(right);
+    stack.push_back(left);
   }
   nodes_.shrink_to_fit();
   xyz_.resize(static_cast<size_t>(3 * n));
@@ -90,7 +92,7 @@ int PointTree::nearest(const Eigen::Vector3d& q, double* squared_distance) const
   };
   Entry stack[128];  // median splits: depth about log2(n / kLeafSize) + 1
   int top = 0;
-  stack[top++] = {0, box_distance2(nodes_[0].lo, nodes_[0].hi, p)};
+  stack[top++] = {0, box_distance2(root_lo_, root_hi_, p)};
   while (top > 0) {
     const Entry e = stack[--top];
     // Not skipped at an equal distance: a point there may tie the best with a lower index.
@@ -107,9 +109,8 @@ int PointTree::nearest(const Eigen::Vector3d& q, double* squared_distance) const
       continue;
     }
     const int l = e.node + 1, r = nd.right;
-    const Node& ln = nodes_[static_cast<size_t>(l)];
-    const Node& rn = nodes_[static_cast<size_t>(r)];
-    const double dl = box_distance2(ln.lo, ln.hi, p), dr = box_distance2(rn.lo, rn.hi, p);
+    double dl, dr;
+    child_box_distances(nd.children, p, dl, dr);
     // The nearer child on top: its points lower the bound for the other.
     if (dl <= dr) {
       if (dr <= best_d) stack[top++] = {r, dr};

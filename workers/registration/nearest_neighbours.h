@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "meshio/mesh.h"
+#include "quality/bvh_layout.h"
 
 namespace mm {
 
@@ -29,10 +30,11 @@ class PointTree {
 
  private:
   struct Node {
-    double lo[3], hi[3];  // box of the node's points
-    int begin, end;       // its points: xyz_[3 * k ...] for k in [begin, end)
-    int right;            // inner nodes: the right child (the left one is next); leaves: -1
+    BvhChildBoxes children;  // inner nodes: the children's boxes, side by side
+    int begin, end;          // its points: xyz_[3 * k ...] for k in [begin, end)
+    int right;               // inner nodes: the right child (the left one is next); leaves: -1
   };
+  double root_lo_[3] = {0, 0, 0}, root_hi_[3] = {0, 0, 0};
   std::vector<double> xyz_;  // the points in leaf order, packed
   std::vector<int> index_;   // leaf order -> index given
   std::vector<int> slot_;    // index given -> leaf order
