@@ -60,12 +60,7 @@ struct TriSlot {
     if (!regular) return false;
     // Most triangles visited are farther than the best point so far: their box (neighbours
     // beside the answer) or their plane (layers above or below it) says so cheaply.
-    double b2 = 0;
-    for (int k = 0; k < 3; ++k) {
-      const double e = std::max(std::max(lo[k] - p[k], p[k] - hi[k]), 0.0);
-      b2 += e * e;
-    }
-    if (b2 >= best2) return false;
+    if (box_distance2(lo, hi, p) >= best2) return false;
     if (prunable) {
       const double dp = dot3(n, p) - d;
       if (dp * dp >= best2) return false;
@@ -217,7 +212,7 @@ class Tree {
     };
     Entry stack[128];  // a median-split tree is at most about log2(n) deep
     int top = 0;
-    stack[top++] = {0, box2(nodes_[0], p)};
+    stack[top++] = {0, box_distance2(nodes_[0].lo, nodes_[0].hi, p)};
     while (top > 0) {
       const Entry e = stack[--top];
       if (e.d2 >= best2) continue;
@@ -257,16 +252,6 @@ class Tree {
     BvhChildBoxes children;  // inner nodes
     int first, count;        // as in Node
   };
-
-
-  static double box2(const Node& nd, const double* p) {
-    double d2 = 0;
-    for (int k = 0; k < 3; ++k) {
-      const double e = std::max(std::max(nd.lo[k] - p[k], p[k] - nd.hi[k]), 0.0);
-      d2 += e * e;
-    }
-    return d2;
-  }
 
   std::vector<Prim> prims_;
   std::vector<Node> nodes_;   // pre-order: children after their parent
