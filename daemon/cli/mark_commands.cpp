@@ -346,8 +346,8 @@ void add_extract_command(CLI::App& app) {
     const NullCalibration cal = calibrate_null(ex.signs, rec.message_bits, ex.correlation, &expected);
     const double verdict_p = std::max(ex.p_value, cal.p);
     const std::string verdict = verdict_for(verdict_p, matches);
-    int wrong_bits = 0;
-    for (std::size_t i = 0; i < expected.size() && i < ex.message.size(); ++i) wrong_bits += expected[i] != ex.message[i];
+    // extract() counted the wrong bits against `expected` (bit_error_rate = wrong / bits).
+    const int wrong_bits = static_cast<int>(std::lround(ex.bit_error_rate * static_cast<double>(expected.size())));
     const std::string reason = jobs::inconclusive_reason("the copy", "p", verdict_p, kPresentP, wrong_bits,
                                                          static_cast<int>(expected.size()));
 

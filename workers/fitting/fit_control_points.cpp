@@ -76,8 +76,8 @@ TargetSamples sample_target(const Mesh& target, const std::vector<std::array<int
     crease_vertices.insert(a);
     crease_vertices.insert(b);
     Eigen::Vector3d pa = target.points.row(a), pb = target.points.row(b);
-    const double fit = (pb - pa).norm() / spacing;
-    const int interior = fit >= 3 ? 3 : static_cast<int>(fit);
+    const double spacings = (pb - pa).norm() / spacing;
+    const int interior = spacings >= 3 ? 3 : static_cast<int>(spacings);
     for (int j = 1; j <= interior; ++j) {
       const double t = static_cast<double>(j) / (interior + 1);
       s.crease.push_back((1 - t) * pa + t * pb);
