@@ -768,3 +768,43 @@ TEST(CliCompress, CoarsensUnlessToldNot) {
   }
   EXPECT_TRUE(any_warm) << jp.dump();
 }
+
+// `compress --fast` fits as a protect job does (one angle, 35; no coarsening) and writes the
+// fewest bits its check accepts without measuring them: the JSON has no numbers and says so, the
+// text says how to get them, and `compare` on the written file confirms the tolerance. An RMS
+// bound needs the numbers, so with one they are measured and reported.
+TEST(CliCompress, FastFitsOnceAndChecksWithoutMeasuring) {
+  Scratch s;
+  const std::string part = s / "flanged.off", fast = s / "fast.mmc", rms = s / "rms.mmc";
+  ASSERT_EQ(meshmark(s, {"sample", "flanged-cylinder", part}).code, 0);
+  const json j = compress_json(s, {part, fast, "--fast"});
+  ASSERT_FALSE(j.is_null());
+  EXPECT_TRUE(j["fast"].get<bool>());
+  EXPECT_FALSE(j["coarsen"].get<bool>());
+  EXPECT_EQ(j["angles_fitted"], json::parse("[35]"));
+  EXPECT_FALSE(j["measured"].get<bool>());
+  EXPECT_TRUE(j["hausdorff"].is_null() && j["rms"].is_null() && j["mean"].is_null()) << j.dump();
+  EXPECT_TRUE(j["tolerance_met"].get<bool>());
+  EXPECT_FALSE(j["snapped"].get<bool>());
+  EXPECT_LE(compared_hausdorff(s, part, fast), 0.005);
+  // The protect path's rounds: the same polyhedron as --no-coarsen at 35 degrees.
+  const json p = compress_json(s, {part, s / "p.mmc", "--angle", "35", "--no-coarsen"});
+  ASSERT_FALSE(p.is_null());
+  EXPECT_EQ(j["round_vertices"], p["round_vertices"]);
+  EXPECT_TRUE(p["measured"].get<bool>());
+  EXPECT_FALSE(p["hausdorff"].is_null());
+
+  const CliRun text = meshmark(s, {"compress", part, fast, "--fast"});
+  ASSERT_EQ(text.code, 0) << text.err;
+  EXPECT_NE(text.out.find("not measured with --fast: meshmark compare"), std::string::npos) << text.out;
+
+  const json r = compress_json(s, {part, rms, "--fast", "--rms-tolerance", "0.002"});
+  ASSERT_FALSE(r.is_null());
+  EXPECT_TRUE(r["measured"].get<bool>());
+  ASSERT_FALSE(r["rms"].is_null());
+  EXPECT_LE(r["rms"].get<double>(), 0.002);
+  EXPECT_TRUE(r["rms_tolerance_met"].get<bool>());
+  const CliRun c = meshmark(s, {"compare", part, rms, "--json"});
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_EQ(json::parse(c.out)["rms"].get<double>(), r["rms"].get<double>());
+}

@@ -150,3 +150,73 @@ TEST(SmallestStream, TheCheapestNumberingStartIsWritten) {
   EXPECT_LT(s.bytes.size(), mm::encode(f.fit.control, p).size()) << "the sample part's first numbering is not its cheapest";
   EXPECT_EQ(measured(f, s).hausdorff, s.distance.hausdorff);
 }
+
+// compress --fast: the first polyhedron at the fewest bits, from 6 up, whose nearest grid values
+// meet the tolerance (each lower bits' stream measured here misses it), encoded as it is (its
+// own numbering, nothing snapped), checked rather than measured. The others are not looked at.
+TEST(SmallestStream, QuickWritesTheFewestBitsNearestValuesUnmeasured) {
+  const Fixture& f = block();
+  mm::StreamSearch quick = search_for(f);
+  quick.quick = true;
+  mm::Mesh off = f.fit.control;
+  off.points.col(2) *= 1.2;
+  const mm::ChosenStream s = mm::smallest_stream(f.part, {&f.fit.control, &off}, quick, "t");
+  EXPECT_TRUE(s.meets);
+  EXPECT_FALSE(s.measured);
+  EXPECT_FALSE(s.snapped || s.descended);
+  EXPECT_EQ(s.polyhedron, 0);
+  EXPECT_LE(measured(f, s).hausdorff_relative(), quick.tolerance);
+  mm::CodecParams p;
+  p.metadata = quick.metadata;
+  p.quant_bits = s.bits;
+  EXPECT_EQ(s.bytes, mm::encode(f.fit.control, p));
+  EXPECT_EQ(s.unsnapped_bytes, s.bytes.size());
+  ASSERT_GT(s.bits, mm::kMinQuantBits) << "the sample part meets the tolerance at 6 bits: nothing below to check";
+  for (int b = mm::kMinQuantBits; b < s.bits; ++b) {
+    p.quant_bits = b;
+    EXPECT_GT(mm::decoded_distance(f.part, mm::decode(mm::encode(f.fit.control, p), "t").mesh, f.fit.levels)
+                  .hausdorff_relative(),
+              quick.tolerance)
+        << b << " bits";
+  }
+  EXPECT_EQ(mm::smallest_stream(f.part, {&f.fit.control}, quick, "t").bytes, s.bytes);  // deterministic
+  // The search proper writes no larger a stream.
+  EXPECT_LE(mm::smallest_stream(f.part, {&f.fit.control}, search_for(f), "t").bytes.size(), s.bytes.size());
+}
+
+// Where it misses the tolerance, the quick stream is measured after all (the report says by how
+// much); within it by a hair, it gets finer grids as the search does; an RMS bound needs the
+// numbers, so they are measured and reported.
+TEST(SmallestStream, QuickMeasuresAMissAndAnRmsBound) {
+  const Fixture& f = block();
+  mm::StreamSearch quick = search_for(f);
+  quick.quick = true;
+  mm::Mesh off = f.fit.control;
+  off.points.col(2) *= 1.2;
+  const mm::ChosenStream missed = mm::smallest_stream(f.part, {&off}, quick, "t");
+  EXPECT_FALSE(missed.meets);
+  EXPECT_TRUE(missed.measured);
+  EXPECT_EQ(missed.bits, mm::conservative_bits(off, quick.tolerance));
+  EXPECT_EQ(measured(f, missed).hausdorff, missed.distance.hausdorff);
+  EXPECT_GT(missed.distance.hausdorff_relative(), quick.tolerance);
+
+  mm::Mesh pushed = f.fit.control;
+  pushed.points.col(2) *= 0.995;
+  mm::StreamSearch hair = quick;
+  hair.tolerance = mm::decoded_distance(f.part, pushed, f.fit.levels).hausdorff_relative() * 1.0002;
+  const mm::ChosenStream fine = mm::smallest_stream(f.part, {&pushed}, hair, "t");
+  EXPECT_TRUE(fine.meets);
+  EXPECT_FALSE(fine.measured);
+  EXPECT_GT(fine.bits, mm::conservative_bits(pushed, hair.tolerance));
+  EXPECT_LE(measured(f, fine).hausdorff_relative(), hair.tolerance);
+
+  mm::StreamSearch rms = quick;
+  rms.rms_tolerance = 0.001;
+  const mm::ChosenStream r = mm::smallest_stream(f.part, {&f.fit.control}, rms, "t");
+  EXPECT_TRUE(r.meets);
+  EXPECT_TRUE(r.measured);
+  const mm::SurfaceDistance d = measured(f, r);
+  EXPECT_EQ(d.hausdorff, r.distance.hausdorff);
+  EXPECT_EQ(d.rms, r.distance.rms);
+  EXPECT_LE(d.rms_relative(), 0.001);
+}

@@ -113,6 +113,46 @@ std::vector<std::uint8_t> cheapest_numbering(const std::vector<std::uint8_t>& st
   return best;
 }
 
+// StreamSearch::quick: `control` at the fewest bits, from 6 up to its conservative bits, whose
+// nearest grid values meet the tolerances (the search's first step, without grid descent), in
+// its own numbering; past the conservative bits, every other bit, only after a fit that met the
+// tolerance and while the stream stays within kCloseToTolerance of it (the search's rule for a
+// polyhedron within the tolerance by a hair). Checked, not measured, unless an RMS bound needs
+// the numbers or nothing meets the tolerances. A check that fails is cheap (it stops at the
+// first sample beyond the tolerance): over the nine bench parts, going up from 6 bits rather
+// than starting at the conservative bits costs 0-130 ms and saves 10-30 % of the bytes.
+template <class Within, class MeasuredIfMet>
+ChosenStream quick_stream(const MeasuredSurface& part, const Mesh& control, const StreamSearch& search,
+                          const CodecParams& params, const Within& within, const MeasuredIfMet& measured_if_met,
+                          const std::string& name) {
+  const int bound = search.bits > 0 ? search.bits : conservative_bits(control, search.tolerance);
+  const int lowest = search.bits > 0 || !search.fit_met ? bound : kMinQuantBits;
+  ChosenStream out;
+  for (int b = lowest; b <= kMaxQuantBits; b += b < bound ? 1 : 2) {
+    CodecParams p = params;
+    p.quant_bits = b;
+    std::vector<std::uint8_t> bytes = encode(control, p);
+    const Mesh decoded = decode(bytes, name).mesh;
+    std::optional<SurfaceDistance> whole;
+    const bool ok = search.rms_tolerance > 0 ? (whole = measured_if_met(decoded)).has_value() : within(decoded, 1.0);
+    if (ok || b == bound) {  // the bound's stream is written when no grid meets the tolerances
+      out.bytes = std::move(bytes);
+      out.bits = b;
+      out.meets = ok;
+      out.measured = whole.has_value();
+      if (whole) out.distance = *whole;
+    }
+    if (ok) break;
+    if (b >= bound && (search.bits > 0 || !search.fit_met || !within(decoded, kCloseToTolerance))) break;
+  }
+  out.unsnapped_bytes = out.bytes.size();
+  if (!out.meets) {
+    out.distance = decoded_distance(part, decode(out.bytes, name).mesh, search.levels);
+    out.measured = true;
+  }
+  return out;
+}
+
 }  // namespace
 
 int conservative_bits(const Mesh& control, double tolerance) {
@@ -159,6 +199,7 @@ ChosenStream smallest_stream(const MeasuredSurface& measured_part, const std::ve
   };
   CodecParams params;
   params.metadata = search.metadata;
+  if (search.quick) return quick_stream(measured_part, *polyhedra.front(), search, params, within, measured_if_met, name);
   ChosenStream out;
   bool measured = false;  // out.distance is the written stream's
   // The chosen polyhedron's points: its own, or descended on the grid (grid_descent.h).
