@@ -86,6 +86,17 @@ with open(dst, 'w') as o:
 PY
 }
 
+# draco_within TABLE H: the smallest Draco stream of a part's table whose Hausdorff distance is
+# at most H, as "qp bytes hausdorff" ("- - -" when none is).
+draco_within() {
+  python3 - "$1" "$2" <<'PY'
+import sys
+rows = [l.split() for l in open(sys.argv[1]) if l.strip()]
+ok = [r for r in rows if float(r[2]) <= float(sys.argv[2])]
+print(' '.join(min(ok, key=lambda r: (int(r[1]), int(r[0])))) if ok else '- - -')
+PY
+}
+
 # Where a part's stream for a seed is written (one seed: without it in the name).
 stream_path() {
   if [ "$SEEDS" = 1 ]; then echo "$OUT/$1.mmc"; else echo "$OUT/$1.seed$2.mmc"; fi
@@ -132,13 +143,7 @@ for name in $LIST; do
     done > "$table.tmp"
     mv "$table.tmp" "$table"
   fi
-  read -r best_qp best_bytes best_h < <(python3 - "$table" "$h" <<'PY'
-import sys
-rows = [l.split() for l in open(sys.argv[1]) if l.strip()]
-ok = [r for r in rows if float(r[2]) <= float(sys.argv[2])]
-print(' '.join(min(ok, key=lambda r: (int(r[1]), int(r[0])))) if ok else '- - -')
-PY
-)
+  read -r best_qp best_bytes best_h < <(draco_within "$table" "$h")
   ratio=-
   if [ "$best_bytes" != "-" ]; then
     ratio=$(python3 -c "print('%.2f' % ($best_bytes / $bytes))")
@@ -166,8 +171,11 @@ fi
 # fit_s is compress() without its dense round checks (check_s); a protect job's compression is
 # both (jobs::prepare_asset runs compress() with the same checks and no bit search: its copies
 # are written at a fixed grid), counted as job_s; command_s is the whole command's CPU time
-# (reading, fit, checks, the bit search, writing). All CPU seconds against the target of 1 s
-# for a 20k-triangle part; that command's peak RSS; and
+# (reading, fit, checks, the bit search, writing); fast_s the same for `compress --fast` (the
+# same fit, then the fewest bits whose check passes, not measured), fast_B its stream's bytes and
+# fast_ratio Draco's bytes at the Hausdorff distance `compare` measures on that stream, over
+# fast_B (the size target's ratio, for the fast streams). All CPU seconds against the target of
+# 1 s for a 20k-triangle part; the protect-path command's peak RSS; and
 # the decoding plus subdivision to level 3 of the first seed's stream above (best of 5 runs,
 # without writing the mesh; target < 10 ms). The default command's CPU time (three crease
 # angles, coarsening) is cpu_s in the table above. run_s: a protect job end to end as the daemon
@@ -175,9 +183,11 @@ fi
 # the part, compress() with its checks, the basis, the customer's copy and its files, the
 # store), CPU of the whole process, the least of SPEED_RUNS.
 echo
-printf '%-14s %8s %8s %8s %8s %10s %8s %8s %10s\n' mesh in_faces ctrl_v fit_s check_s command_s run_s rss_MB dec_l3_ms
+printf '%-14s %8s %8s %8s %8s %10s %7s %7s %10s %8s %8s %10s\n' mesh in_faces ctrl_v fit_s check_s command_s \
+  fast_s fast_B fast_ratio run_s rss_MB dec_l3_ms
 first_seed=${SEEDS%% *}
-fit_ok=0 job_ok=0 command_ok=0 run_ok=0 dec_ok=0 n_parts=0
+fit_ok=0 job_ok=0 command_ok=0 fast_ok=0 run_ok=0 dec_ok=0 n_parts=0
+fast_ratios=()
 # less_than A B: whether A < B as numbers, an empty B counting as none yet (the least so far).
 less_than() { [ -z "$2" ] || python3 -c "import sys; sys.exit(0 if $1 < $2 else 1)"; }
 # protect_job_cpu PART: CPU seconds of one protect job of PART through `meshmark run`.
@@ -224,6 +234,26 @@ for in in "${parts[@]}"; do
     fi
   done
   echo "$command" > "$OUT/$base.protect-path.cpu"
+  fast_cpu=""
+  for ((run = 1; run <= SPEED_RUNS; run++)); do
+    cpu_seconds "$OUT/$base.fast.cpu" "$MESHMARK" compress "$in" "$OUT/$base.fast.mmc" \
+      --tolerance "$TOLERANCE" --max-vertices "$MAX_VERTICES" --fast --threads 1 --json >/dev/null
+    this=$(cat "$OUT/$base.fast.cpu")
+    if less_than "$this" "$fast_cpu"; then fast_cpu=$this; fi
+  done
+  fast_bytes=$(stat -c %s "$OUT/$base.fast.mmc")
+  fast_h=$("$MESHMARK" compare "$in" "$OUT/$base.fast.mmc" --json | jq -r '.hausdorff')
+  fast_ratio=-
+  table=$(ls "$OUT/$base".*.draco.txt 2>/dev/null | head -1 || true)
+  if [ -n "$table" ]; then
+    read -r _ draco_bytes _ < <(draco_within "$table" "$fast_h")
+    if [ "$draco_bytes" != "-" ]; then
+      fast_ratio=$(python3 -c "print('%.2f' % ($draco_bytes / $fast_bytes))")
+      [ "$in" = "$large" ] || fast_ratios+=("$fast_ratio")
+    fi
+  fi
+  python3 -c "import sys; sys.exit(0 if $fast_h <= $TOLERANCE else 1)" ||
+    echo "bench-compress: $base's --fast stream misses the tolerance by compare: $fast_h" >&2
   job_run=""
   for ((run = 1; run <= SPEED_RUNS; run++)); do
     this=$(protect_job_cpu "$in")
@@ -233,22 +263,26 @@ for in in "${parts[@]}"; do
   dec=$(for k in 1 2 3 4 5; do
           "$MESHMARK" decompress "$mmc" "$OUT/$base.level3.ply" --level 3 --json | jq -r '.decode_seconds + .subdivide_seconds'
         done | sort -g | head -1)
-  printf '%-14s %8d %8d %8.2f %8.2f %10.2f %8.2f %8.1f %10.2f\n' "$base" "$faces" "$ctrl" "$secs" "$check" "$command" \
-    "$job_run" "$rss" "$(python3 -c "print(1000 * $dec)")"
+  printf '%-14s %8d %8d %8.2f %8.2f %10.2f %7.2f %7d %10s %8.2f %8.1f %10.2f\n' "$base" "$faces" "$ctrl" "$secs" "$check" \
+    "$command" "$fast_cpu" "$fast_bytes" "$fast_ratio" "$job_run" "$rss" "$(python3 -c "print(1000 * $dec)")"
   if [ "$in" = "$large" ]; then
-    large_line="a 20k-triangle part (abc5 split 1:4, $faces triangles): the fit $(python3 -c "print('%.2f' % $secs)") s, a protect job's $(python3 -c "print('%.2f' % ($secs + $check))") s, the whole command $command s, a protect job through meshmark run $job_run s"
+    large_line="a 20k-triangle part (abc5 split 1:4, $faces triangles): the fit $(python3 -c "print('%.2f' % $secs)") s, a protect job's $(python3 -c "print('%.2f' % ($secs + $check))") s, the whole command $command s, with --fast $fast_cpu s ($fast_bytes bytes), a protect job through meshmark run $job_run s"
     continue
   fi
   n_parts=$((n_parts + 1))
   fit_ok=$((fit_ok + $(python3 -c "print(int($secs < 1))")))
   job_ok=$((job_ok + $(python3 -c "print(int($secs + $check < 1))")))
   command_ok=$((command_ok + $(python3 -c "print(int($command < 1))")))
+  fast_ok=$((fast_ok + $(python3 -c "print(int($fast_cpu < 1))")))
   run_ok=$((run_ok + $(python3 -c "print(int($job_run < 1))")))
   dec_ok=$((dec_ok + $(python3 -c "print(int($dec < 0.010))")))
 done
 echo "compress under 1 s CPU: the fit $fit_ok of $n_parts parts, a protect job's (fit and checks) $job_ok," \
-  "the whole command $command_ok, a protect job through meshmark run $run_ok;" \
+  "the whole command $command_ok, with --fast $fast_ok, a protect job through meshmark run $run_ok;" \
   "decompress to level 3 under 10 ms: $dec_ok of $n_parts"
+if [ ${#fast_ratios[@]} -gt 0 ]; then
+  python3 -c "import statistics,sys; print('median size ratio Draco/meshmark --fast at equal Hausdorff: %.2f over %d meshes (seed 1)' % (statistics.median(float(x) for x in sys.argv[1:]), len(sys.argv) - 1))" "${fast_ratios[@]}"
+fi
 [ -z "$large" ] || echo "$large_line"
 
 # Pictures of fandisk: original, control polyhedron with creases, decoded surface.

@@ -274,7 +274,7 @@ void add_compress_commands(CLI::App& app) {
                 "unless --angle), no coarsening, no bit search (the bits whose rounding error stays "
                 "below a fifth of the tolerance, nearest grid values); the stream is checked within "
                 "the tolerance by the dense measurement's samples but not measured (no Hausdorff/RMS "
-                "numbers: meshmark compare gives them); streams 20-50 % larger");
+                "numbers: meshmark compare gives them); streams about a quarter larger");
     c->add_option("--threads", a->threads,
                   "fit the angles' crease networks on up to this many threads at once (default: one per "
                   "core; the stream is the same for any number)")
