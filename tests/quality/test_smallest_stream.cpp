@@ -39,6 +39,20 @@ mm::StreamSearch search_for(const Fixture& f) {
   return s;
 }
 
+// compress --fast's search.
+mm::StreamSearch quick_search_for(const Fixture& f) {
+  mm::StreamSearch s = search_for(f);
+  s.quick = true;
+  return s;
+}
+
+// The fit's polyhedron stretched by a fifth along z: off the tolerance at any bits.
+mm::Mesh off_the_part(const Fixture& f) {
+  mm::Mesh off = f.fit.control;
+  off.points.col(2) *= 1.2;
+  return off;
+}
+
 }  // namespace
 
 // A polyhedron pushed off the part misses the tolerance at every bits; the good one after it
@@ -46,8 +60,7 @@ mm::StreamSearch search_for(const Fixture& f) {
 TEST(SmallestStream, SkipsPolyhedraThatMissAndReportsTheDecodedDistance) {
   const Fixture& f = block();
   ASSERT_TRUE(f.fit.tolerance_met);
-  mm::Mesh off = f.fit.control;
-  off.points.col(2) *= 1.2;
+  const mm::Mesh off = off_the_part(f);
   const mm::ChosenStream s = mm::smallest_stream(f.part, {&off, &f.fit.control}, search_for(f), "t");
   EXPECT_TRUE(s.meets);
   EXPECT_EQ(s.polyhedron, 1);
@@ -59,8 +72,7 @@ TEST(SmallestStream, SkipsPolyhedraThatMissAndReportsTheDecodedDistance) {
 // Nothing meets: the first polyhedron at its conservative bits, marked as missing.
 TEST(SmallestStream, NothingMeetsGivesTheFirstAtItsConservativeBits) {
   const Fixture& f = block();
-  mm::Mesh off = f.fit.control;
-  off.points.col(2) *= 1.2;
+  const mm::Mesh off = off_the_part(f);
   const mm::ChosenStream s = mm::smallest_stream(f.part, {&off}, search_for(f), "t");
   EXPECT_FALSE(s.meets);
   EXPECT_EQ(s.bits, mm::conservative_bits(off, 0.005));
@@ -156,10 +168,8 @@ TEST(SmallestStream, TheCheapestNumberingStartIsWritten) {
 // own numbering, nothing snapped), checked rather than measured. The others are not looked at.
 TEST(SmallestStream, QuickWritesTheFewestBitsNearestValuesUnmeasured) {
   const Fixture& f = block();
-  mm::StreamSearch quick = search_for(f);
-  quick.quick = true;
-  mm::Mesh off = f.fit.control;
-  off.points.col(2) *= 1.2;
+  const mm::StreamSearch quick = quick_search_for(f);
+  const mm::Mesh off = off_the_part(f);
   const mm::ChosenStream s = mm::smallest_stream(f.part, {&f.fit.control, &off}, quick, "t");
   EXPECT_TRUE(s.meets);
   EXPECT_FALSE(s.measured);
@@ -189,10 +199,8 @@ TEST(SmallestStream, QuickWritesTheFewestBitsNearestValuesUnmeasured) {
 // numbers, so they are measured and reported.
 TEST(SmallestStream, QuickMeasuresAMissAndAnRmsBound) {
   const Fixture& f = block();
-  mm::StreamSearch quick = search_for(f);
-  quick.quick = true;
-  mm::Mesh off = f.fit.control;
-  off.points.col(2) *= 1.2;
+  const mm::StreamSearch quick = quick_search_for(f);
+  const mm::Mesh off = off_the_part(f);
   const mm::ChosenStream missed = mm::smallest_stream(f.part, {&off}, quick, "t");
   EXPECT_FALSE(missed.meets);
   EXPECT_TRUE(missed.measured);
