@@ -218,7 +218,7 @@ void add_compress_commands(CLI::App& app) {
       double rms_tolerance = 0;  // 0: the bit search checks the Hausdorff distance only
       bool json = false;
       bool snap = true;
-      bool fast = false;  // a protect job's compression: one angle, no coarsening, no bit search
+      bool fast = false;  // a protect job's compression: one angle, no coarsening, no stream search
       // 45 and 55 besides the usual 35: a part with many edges between them fits with fewer
       // vertices when they are smooth (blade, seeds 1-3: 1156-1246 bytes at 35, 874-1000 at
       // the best of the three; docs/compression.md). Parts whose crease network is the same at
@@ -270,10 +270,10 @@ void add_compress_commands(CLI::App& app) {
                 "keep the refinement rounds' polyhedron (no removal of control vertices after them; "
                 "a 3-5x faster fit, streams about 9 % larger)");
     c->add_flag("--fast", a->fast,
-                "compress as a protect job does, in about a third of the time: one crease angle (35 "
-                "unless --angle), no coarsening, no bit search (the bits whose rounding error stays "
-                "below a fifth of the tolerance, nearest grid values); the stream is checked within "
-                "the tolerance by the dense measurement's samples but not measured (no Hausdorff/RMS "
+                "compress as a protect job does, in under half the time: one crease angle (35 unless "
+                "--angle), no coarsening, no stream search (the fewest bits from 6 up whose stream passes "
+                "the check, nearest grid values, no snapping or renumbering); the stream is checked within "
+                "the tolerance on the dense measurement's samples but not measured (no Hausdorff/RMS "
                 "numbers: meshmark compare gives them); streams about a quarter larger");
     c->add_option("--threads", a->threads,
                   "fit the angles' crease networks on up to this many threads at once (default: one per "

@@ -51,7 +51,7 @@ struct ChosenStream {
   bool descended = false;
   std::size_t unsnapped_bytes = 0;  // the chosen polyhedron's plain stream (cheapest numbering)
   bool meets = false;             // distance within both tolerances
-  bool measured = true;           // `distance` is the written stream's (StreamSearch::quick)
+  bool measured = true;           // false: `distance` was not measured (StreamSearch::quick)
 };
 
 // Fewest bits whose worst rounding error (half a grid step on each axis) stays below a fifth of
