@@ -206,15 +206,11 @@ class Tree {
     }
     // Depth-first, nearer child first; a subtree is skipped when its box is not closer than
     // the best point so far.
-    struct Entry {
-      int node;
-      double d2;
-    };
-    Entry stack[128];  // a median-split tree is at most about log2(n) deep
+    BvhStackEntry stack[128];  // a median-split tree is at most about log2(n) deep
     int top = 0;
     stack[top++] = {0, box_distance2(nodes_[0].lo, nodes_[0].hi, p)};
     while (top > 0) {
-      const Entry e = stack[--top];
+      const BvhStackEntry e = stack[--top];
       if (e.d2 >= best2) continue;
       const SearchNode& nd = search_[static_cast<size_t>(e.node)];
       if (nd.count > 0) {
@@ -228,13 +224,7 @@ class Tree {
       // The far child is usually popped later; fetching both now overlaps their misses.
       if (dr < best2) __builtin_prefetch(&search_[static_cast<size_t>(r)]);
       if (dl < best2) __builtin_prefetch(&search_[static_cast<size_t>(l)]);
-      if (dl <= dr) {
-        if (dr < best2) stack[top++] = {r, dr};
-        if (dl < best2) stack[top++] = {l, dl};
-      } else {
-        if (dl < best2) stack[top++] = {l, dl};
-        if (dr < best2) stack[top++] = {r, dr};
-      }
+      push_nearer_child_last(stack, top, l, dl, r, dr, [best2](double d) { return d < best2; });
     }
     if (best < 0) return -1;
     point = Eigen::Vector3d(x[0], x[1], x[2]);

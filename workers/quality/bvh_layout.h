@@ -43,6 +43,28 @@ inline void child_box_distances(const BvhChildBoxes& cb, const double* p, double
   right = d[1];
 }
 
+// A depth-first nearest search's stack entry: a node and its box's squared distance.
+struct BvhStackEntry {
+  int node;
+  double d2;
+};
+
+// Pushes an inner node's two children for a depth-first nearest search, the nearer one last so it
+// is popped first (its primitives lower the bound the farther one is then measured against); a
+// child is pushed only where `keep(its squared box distance)` (strictly closer than the best so
+// far, or not farther where a tie must be visited).
+template <class Keep>
+inline void push_nearer_child_last(BvhStackEntry* stack, int& top, int left, double dl, int right, double dr,
+                                   const Keep& keep) {
+  if (dl <= dr) {
+    if (keep(dr)) stack[top++] = {right, dr};
+    if (keep(dl)) stack[top++] = {left, dl};
+  } else {
+    if (keep(dl)) stack[top++] = {left, dl};
+    if (keep(dr)) stack[top++] = {right, dr};
+  }
+}
+
 // Squared distance from p to the box [lo, hi]. Each axis's gap is at most that of any point in
 // the box (rounding is monotone), so it never exceeds a contained point's squared distance
 // summed the same way: a search skipping boxes farther than its best skips no tie.

@@ -229,15 +229,11 @@ double TriangleDistanceTree::squared_distance(const Eigen::Vector3d& q, int& hin
   const int start = hint >= 0 && hint < static_cast<int>(im.tris.size()) ? hint : -1;
   if (start >= 0) visit(start);
   double limit = bound();
-  struct Entry {
-    int node;
-    double d2;
-  };
-  Entry stack[128];  // at most depth + 1 entries: 48 surface-area levels, then median splits
+  BvhStackEntry stack[128];  // at most depth + 1 entries: 48 surface-area levels, then median splits
   int top = 0;
   stack[top++] = {0, box_distance2(im.root_lo, im.root_hi, p)};
   while (top > 0) {
-    const Entry e = stack[--top];
+    const BvhStackEntry e = stack[--top];
     if (e.d2 > limit) continue;
     const Node& nd = im.nodes[static_cast<size_t>(e.node)];
     if (nd.count > 0) {
@@ -262,13 +258,7 @@ double TriangleDistanceTree::squared_distance(const Eigen::Vector3d& q, int& hin
     child_box_distances(nd.children, p, dl, dr);
     if (dr <= limit) __builtin_prefetch(&im.nodes[static_cast<size_t>(r)]);
     if (dl <= limit) __builtin_prefetch(&im.nodes[static_cast<size_t>(l)]);
-    if (dl <= dr) {
-      if (dr <= limit) stack[top++] = {r, dr};
-      if (dl <= limit) stack[top++] = {l, dl};
-    } else {
-      if (dl <= limit) stack[top++] = {l, dl};
-      if (dr <= limit) stack[top++] = {r, dr};
-    }
+    push_nearer_child_last(stack, top, l, dl, r, dr, [limit](double d) { return d <= limit; });
   }
   hint = best;
   return best2;

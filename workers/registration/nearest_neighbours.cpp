@@ -86,15 +86,11 @@ int PointTree::nearest(const Eigen::Vector3d& q, double* squared_distance) const
     return best;
   }
   const double p[3] = {q.x(), q.y(), q.z()};
-  struct Entry {
-    int node;
-    double d2;
-  };
-  Entry stack[128];  // median splits: depth about log2(n / kLeafSize) + 1
+  BvhStackEntry stack[128];  // median splits: depth about log2(n / kLeafSize) + 1
   int top = 0;
   stack[top++] = {0, box_distance2(root_lo_, root_hi_, p)};
   while (top > 0) {
-    const Entry e = stack[--top];
+    const BvhStackEntry e = stack[--top];
     // Not skipped at an equal distance: a point there may tie the best with a lower index.
     if (e.d2 > best_d) continue;
     const Node& nd = nodes_[static_cast<size_t>(e.node)];
@@ -111,14 +107,8 @@ int PointTree::nearest(const Eigen::Vector3d& q, double* squared_distance) const
     const int l = e.node + 1, r = nd.right;
     double dl, dr;
     child_box_distances(nd.children, p, dl, dr);
-    // The nearer child on top: its points lower the bound for the other.
-    if (dl <= dr) {
-      if (dr <= best_d) stack[top++] = {r, dr};
-      if (dl <= best_d) stack[top++] = {l, dl};
-    } else {
-      if (dl <= best_d) stack[top++] = {l, dl};
-      if (dr <= best_d) stack[top++] = {r, dr};
-    }
+    // Not farther than the best: a point at an equal distance may have a lower index.
+    push_nearer_child_last(stack, top, l, dl, r, dr, [best_d](double d) { return d <= best_d; });
   }
   if (squared_distance) *squared_distance = best_d;
   return best;
