@@ -1,13 +1,12 @@
 #include "cli/copy_record.h"
 
-#include <sodium.h>
-
 #include <cmath>
 #include <cstring>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "cli/file_util.h"
+#include "jobs/copy_identity.h"
 
 namespace mm::cli {
 
@@ -74,18 +73,11 @@ std::string exact(double x) {
 
 Nonce derive_nonce(const Key& key, const std::string& original_sha256, const EmbedParams& params,
                    const std::string& message) {
-  std::ostringstream in;
-  in << "meshmark copy nonce v1\n"
-     << original_sha256 << "\n"
-     << static_cast<int>(params.method) << "\n"
-     << exact(params.strength) << "\n"
-     << exact(params.threshold) << "\n"
-     << to_hex(reinterpret_cast<const std::uint8_t*>(message.data()), message.size()) << "\n";
-  const std::string s = in.str();
-  Nonce nonce{};
-  crypto_generichash(nonce.data(), nonce.size(), reinterpret_cast<const unsigned char*>(s.data()),
-                     s.size(), key.data(), key.size());
-  return nonce;
+  return jobs::derive_copy_identity({"embed", original_sha256, std::to_string(static_cast<int>(params.method)),
+                                     exact(params.strength), exact(params.threshold),
+                                     to_hex(reinterpret_cast<const std::uint8_t*>(message.data()), message.size())},
+                                    &key)
+      .nonce;
 }
 
 std::string record_to_json(const CopyRecord& r) {

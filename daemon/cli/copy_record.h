@@ -19,8 +19,8 @@ std::string bits_to_bytes(const std::vector<bool>& bits);  // trailing partial b
 std::string bits_to_string(const std::vector<bool>& bits);  // "0110..."
 bool valid_utf8(const std::string& s);
 
-// The per-copy nonce: BLAKE2b-192 keyed by the customer key over the original's hash, the
-// parameters and the message. Same command, same nonce (byte-identical outputs); another
+// The per-copy nonce: jobs::derive_copy_identity keyed by the customer key over the original's
+// hash, the parameters and the message. Same command, same nonce (byte-identical outputs); another
 // customer, message or parameter set gets an unrelated key stream; without the key the nonce
 // tells nothing.
 Nonce derive_nonce(const Key& key, const std::string& original_sha256, const EmbedParams& params,

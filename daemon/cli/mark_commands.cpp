@@ -344,7 +344,8 @@ void add_extract_command(CLI::App& app) {
     // As the daemon does: an empirical null from public sequences beside the exact tail, and the
     // verdict on the larger of the two, so the evidence never rests on the binomial model alone.
     const NullCalibration cal = calibrate_null(ex.signs, rec.message_bits, ex.correlation, &expected);
-    const double verdict_p = std::max(ex.p_value, cal.p);
+    const jobs::MarkP mark_p = jobs::verdict_p(ex, cal);
+    const double verdict_p = mark_p.p;
     const std::string verdict = verdict_for(verdict_p, matches);
     // extract() counted the wrong bits against `expected` (bit_error_rate = wrong / bits).
     const int wrong_bits = static_cast<int>(std::lround(ex.bit_error_rate * static_cast<double>(expected.size())));
@@ -398,7 +399,7 @@ void add_extract_command(CLI::App& app) {
       o << "< 1e-300";  // underflows; -log10 p still says how small
     else
       o << "= " << verdict_p;
-    o << ", -log10 p = " << std::min(ex.neg_log10_p, cal.neg_log10_p) << " (exact " << ex.neg_log10_p
+    o << ", -log10 p = " << mark_p.neg_log10_p << " (exact " << ex.neg_log10_p
       << ", calibrated " << cal.neg_log10_p << "); present needs p < " << kPresentP
       << " and the recorded message)\n";
     if (!reason.empty()) o << "reason: " << reason << "\n";

@@ -20,11 +20,13 @@
 #include <system_error>
 
 #include "codec/stream.h"
-#include "jobs/detect.h"
+#include "jobs/copy_identity.h"
+#include "jobs/detect_suspect.h"
 #include "jobs/payload.h"
 #include "jobs/prepared_asset.h"
 #include "jobs/protect.h"
 #include "meshio/read_mesh.h"
+#include "service/detection_store.h"
 
 namespace mm::service {
 
@@ -110,24 +112,6 @@ Mesh parse_input(const std::vector<std::uint8_t>& bytes, const std::string& name
   }
 }
 
-const char* method_name(Method m) { return m == Method::Additive ? "additive" : "multiplicative"; }
-
-json settings_json(const jobs::WatermarkSettings& s) {
-  return {{"method", method_name(s.params.method)},
-          {"strength", s.params.strength},
-          {"threshold", s.params.threshold},
-          {"message_bits", s.message_bits}};
-}
-
-jobs::WatermarkSettings settings_from_json(const json& j) {
-  jobs::WatermarkSettings s;
-  s.params.method = j.at("method").get<std::string>() == "additive" ? Method::Additive : Method::Multiplicative;
-  s.params.strength = j.at("strength").get<double>();
-  s.params.threshold = j.at("threshold").get<double>();
-  s.message_bits = j.at("message_bits").get<int>();
-  return s;
-}
-
 struct LoadedAsset {
   store::Polyhedron row;
   jobs::PreparedAsset prepared;
@@ -184,19 +168,6 @@ LoadedAsset get_or_prepare(store::Store& st, const store::Asset& asset, const Me
                       .dump();
   row = st.put_polyhedron(row);
   return {row, std::move(prepared)};
-}
-
-// Nonce and payload of a copy, derived from what identifies the copy, so a re-run after a crash
-// reproduces the same output bytes. Not secret: the key is what protects the mark.
-void derive_copy_identity(const std::string& asset_sha, std::int64_t customer_id, int key_version,
-                          const std::string& idem, int counter, Nonce& nonce, std::uint64_t& payload) {
-  std::string msg = "meshmark-copy-v1|" + asset_sha + "|" + std::to_string(customer_id) + "|" +
-                    std::to_string(key_version) + "|" + idem + "|" + std::to_string(counter);
-  unsigned char h[32];
-  crypto_generichash(h, sizeof h, reinterpret_cast<const unsigned char*>(msg.data()), msg.size(), nullptr, 0);
-  std::copy(h, h + 24, nonce.begin());
-  payload = 0;
-  for (int i = 0; i < 8; ++i) payload |= std::uint64_t(h[24 + i]) << (8 * i);
 }
 
 std::string copy_idempotency_key(const store::Job& job) {
@@ -298,15 +269,11 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
     if (!(c.customer_id == customer->id && c.key_version == ck.version && c.idempotency_key == idem))
       taken.insert(c.payload_hex);
   jobs::WatermarkSettings ws = cfg.watermark;
-  Nonce nonce{};
-  std::uint64_t payload = 0;
-  std::string phex;
-  for (int counter = 0;; ++counter) {
-    derive_copy_identity(asset.sha256, customer->id, ck.version, idem, counter, nonce, payload);
-    if (ws.message_bits < 64) payload &= (std::uint64_t(1) << ws.message_bits) - 1;
-    phex = jobs::payload_hex(payload, ws.message_bits);
-    if (!taken.count(phex)) break;
-  }
+  const jobs::CopyIdentity identity =
+      jobs::issue_copy_identity(asset.sha256, customer->id, ck.version, idem, ws.message_bits, taken);
+  const Nonce& nonce = identity.nonce;
+  const std::uint64_t payload = identity.payload;
+  const std::string phex = jobs::payload_hex(payload, ws.message_bits);
 
   const jobs::PreparedAsset& prep = la.prepared;
   jobs::StreamSettings ss;
@@ -338,10 +305,7 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   nc.idempotency_key = idem;
   nc.nonce.assign(nonce.begin(), nonce.end());
   nc.payload_hex = phex;
-  json params = settings_json(ws);
-  params["prepare"] = la.row.params_key;
-  params["basis_sha256"] = la.row.basis_blob;
-  nc.params_json = params.dump();
+  nc.params_json = jobs::copy_params_json(ws, la.row.params_key, la.row.basis_blob);
   nc.outputs_json =
       json{{"files", json::array({json{{"role", "decoded"}, {"path", out}, {"sha256", out_sha}, {"format", out_format},
                                        {"levels", prep.levels}, {"vertices", files.decoded.num_vertices()}},
@@ -383,210 +347,56 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   return rec;
 }
 
-namespace {
-
-// A suspect in a polyhedron's vertex order and normalised frame.
-struct Aligned {
-  Points points;
-  std::string method;
-  int level = 0;
-  double residual = std::numeric_limits<double>::infinity();  // RMS, unit-box units
-  double matched_fraction = 0;
-};
-
-Aligned align_to(const std::string& polyhedron_blob, const jobs::PreparedAsset& asset, const Mesh& suspect,
-                 const std::string& name, ContextCache* contexts) {
-  Aligned a;
-  try {
-    // Building a context costs more than a detection, so the process keeps them, keyed by the
-    // polyhedron's content address (a blob never changes); without a cache, one per use.
-    auto build = [&asset] { return jobs::make_resync_context(asset); };
-    std::shared_ptr<const ResyncContext> ctx =
-        contexts ? contexts->get(polyhedron_blob, build) : std::make_shared<const ResyncContext>(build());
-    ResyncOptions o;
-    o.source = name;
-    // Copies are issued in the part's units (protect undoes the normalisation), so a copy leaked
-    // as issued lies in the asset's frame once normalised, where the resynchronisation's unmoved
-    // pairing explains it exactly. Given in the part's units, every suspect was aligned by a
-    // fitted similarity instead, which on a part symmetric about an axis may settle on a
-    // symmetric pose: abc7's issued STL copies were paired exactly (residual 4e-9) but permuted,
-    // and half of them were not attributed. A moved copy is aligned as before.
-    Mesh in_frame = suspect;
-    apply(asset.normalization, in_frame.points);
-    Resynchronized r = jobs::resynchronize_suspect(*ctx, in_frame, o);
-    std::string built;
-    for (int l = 0; l <= ctx->max_level(); ++l) built += ctx->level_built(l) ? std::to_string(l) : "-";
-    spdlog::debug("resync {} to polyhedron {}: {} level {}; context {:.1f} MB, levels {} built", name,
-                  polyhedron_blob.substr(0, 12), r.method, r.level,
-                  static_cast<double>(ctx->memory_bytes()) / (1 << 20), built);
-    a.points = std::move(r.points);
-    a.method = r.method;
-    a.level = r.level;
-    a.residual = r.residual_rms;
-    a.matched_fraction = r.matched_fraction;
-  } catch (const InputError& e) {  // this candidate does not fit; others may
-    a.method = std::string("none: ") + e.reason();
-  }
-  return a;
-}
-
-std::string prepare_key_of(const store::IssuedCopy& c) {
-  try {
-    return json::parse(c.params_json).value("prepare", "");
-  } catch (const json::exception&) {
-    return "";
-  }
-}
-
-// The asset's shape signature from one of its polyhedra; rows of the vertex-based era are
-// recomputed from the original (its blob), so every asset compares with the same signature.
-std::optional<jobs::ShapeSignature> asset_signature(store::Store& st, std::int64_t asset_id,
-                                                    const std::vector<store::IssuedCopy>& copies) {
-  for (const auto& c : copies) {
-    auto row = st.find_polyhedron(asset_id, prepare_key_of(c));
-    if (!row) continue;
-    try {
-      auto sig = jobs::ShapeSignature::from_json(json::parse(row->meta_json).at("signature").dump());
-      if (sig.version == jobs::ShapeSignature{}.version) return sig;
-      auto a = st.get_asset(asset_id);
-      if (!a) return std::nullopt;
-      auto bytes = st.blobs().get(a->sha256);
-      return jobs::shape_signature(parse_input(bytes, a->name));
-    } catch (const std::exception& e) {
-      spdlog::warn("asset {}: no usable shape signature: {}", asset_id, e.what());
-      return std::nullopt;
-    }
-  }
-  return std::nullopt;
-}
-
-}  // namespace
-
 store::JobRecords run_detect(store::Store& st, const store::Job& job, const HandlerContext& ctx,
                              ContextCache* contexts) {
   const Config& cfg = ctx.config;
   if (contexts) contexts->set_budget(static_cast<std::size_t>(cfg.context_cache_mb) << 20);
   json p = parse_payload(job);
-  std::string name = fs::path(str_field(p, "name", job)).filename().string();
-  std::string sha;
-  auto bytes = input_bytes(st, p, job, &sha);
-  std::map<std::string, std::string> stream_meta;
-  Mesh suspect = parse_input(bytes, name, &stream_meta);
+  jobs::Suspect suspect;
+  suspect.name = fs::path(str_field(p, "name", job)).filename().string();
+  auto bytes = input_bytes(st, p, job, &suspect.sha256);
+  suspect.mesh = parse_input(bytes, suspect.name, &suspect.stream_metadata);
 
-  std::map<std::int64_t, std::vector<store::IssuedCopy>> copies_of;
-  for (auto& c : st.list_copies(std::nullopt, kAllCopies)) copies_of[c.asset_id].push_back(std::move(c));
+  jobs::DetectOptions options;
+  options.p_threshold = cfg.p_threshold;
+  options.max_candidates = cfg.max_candidates;
+  if (contexts)
+    options.contexts = [contexts](const std::string& key, const std::function<ResyncContext()>& build) {
+      return contexts->get(key, build);
+    };
+  StoreForDetection view(st);
+  const jobs::Detection det = jobs::detect_suspect(view, suspect, options);
+  for (const auto& w : det.warnings) spdlog::warn("detect {}: {}", suspect.name, w);
+  for (const auto& t : det.tried)
+    spdlog::debug("resync {} to polyhedron {}: {} level {}; context {:.1f} MB, levels {} built", suspect.name,
+                  t.polyhedron_id, t.alignment.method, t.alignment.level, t.alignment.context_mb,
+                  t.alignment.levels_built);
 
-  // Candidate assets: exact hash of any issued file (stream or decoded mesh) or of an original,
-  // then the asset a stream names in its metadata, then the nearest by shape signature.
-  std::vector<std::int64_t> candidates;
-  std::string match;
-  auto add = [&](std::int64_t id) {
-    if (std::find(candidates.begin(), candidates.end(), id) == candidates.end()) candidates.push_back(id);
-  };
-  for (const auto& [asset_id, copies] : copies_of)
-    for (const auto& c : copies) {
-      try {
-        for (const auto& f : json::parse(c.outputs_json).value("files", json::array()))
-          if (f.value("sha256", "") == sha) {
-            add(asset_id);
-            if (match.empty())
-              match = "hash of issued copy " + std::to_string(c.id) + " (" + f.value("role", "decoded") + ")";
-          }
-      } catch (const json::exception&) {
-      }
-    }
-  if (auto a = st.find_asset(sha)) {
-    add(a->id);
-    if (match.empty()) match = "hash of original asset " + std::to_string(a->id);
-  }
-  if (candidates.empty() && stream_meta.count("asset") && store::is_sha256_hex(stream_meta["asset"]))
-    if (auto a = st.find_asset(stream_meta["asset"])) add(a->id), match = "stream metadata";
-  if (candidates.empty()) {
-    jobs::ShapeSignature sig = jobs::shape_signature(suspect);
-    std::vector<std::pair<double, std::int64_t>> ranked;
-    for (const auto& [asset_id, copies] : copies_of) {
-      auto as = asset_signature(st, asset_id, copies);
-      if (!as) continue;
-      double d = jobs::signature_distance(sig, *as);
-      if (d < 0.5) ranked.push_back({d, asset_id});
-    }
-    std::sort(ranked.begin(), ranked.end());
-    for (const auto& r : ranked) {
-      if (static_cast<int>(candidates.size()) >= cfg.max_candidates) break;
-      add(r.second);
-    }
-    if (!candidates.empty()) match = "shape signature";
-  }
-
-  // Every copy ever issued for a candidate, grouped by the polyhedron it was embedded in (a
-  // change of compression options gives later copies another polyhedron).
-  struct Tried {
-    std::int64_t asset_id = 0;
-    std::int64_t polyhedron_id = 0;
-    Aligned aligned;
-    jobs::Verdict verdict;
-    std::vector<store::IssuedCopy> copies;
-  };
-  std::vector<Tried> tried;
-  int total = 0;
-  for (std::int64_t asset_id : candidates) {
-    std::map<std::string, std::vector<store::IssuedCopy>> groups;
-    for (const auto& c : copies_of[asset_id]) groups[prepare_key_of(c)].push_back(c);
-    for (auto& [key, copies] : groups) {
-      auto row = st.find_polyhedron(asset_id, key);
-      if (!row) {
-        spdlog::warn("asset {}: {} copies name a polyhedron that is not cached (\"{}\")", asset_id, copies.size(), key);
-        continue;
-      }
-      jobs::PreparedAsset prep = decode_row(st, *row);
-      Tried t;
-      t.asset_id = asset_id;
-      t.polyhedron_id = row->id;
-      t.aligned = align_to(row->polyhedron_blob, prep, suspect, name, contexts);
-      t.copies = std::move(copies);
-      std::vector<jobs::CopyCandidate> cands;
-      for (const auto& c : t.copies) {
-        jobs::CopyCandidate cc;
-        cc.copy_id = c.id;
-        if (c.nonce.size() != cc.nonce.size()) continue;
-        std::copy(c.nonce.begin(), c.nonce.end(), cc.nonce.begin());
-        try {
-          cc.payload = jobs::parse_payload_hex(c.payload_hex);
-          cc.settings = settings_from_json(json::parse(c.params_json));
-        } catch (const std::exception&) {
-          continue;
-        }
-        cc.key = st.customer_key(c.customer_id, c.key_version).key.bytes();
-        cands.push_back(cc);
-      }
-      if (std::isfinite(t.aligned.residual) && prep.control.num_vertices() == t.aligned.points.rows())
-        t.verdict = jobs::detect_copy(prep, t.aligned.points, cands, cfg.p_threshold);
-      total += t.verdict.copies_tried;
-      tried.push_back(std::move(t));
-    }
-  }
-
-  // Bonferroni over every copy tried for every candidate asset.
+  const std::string& name = suspect.name;
+  const std::string& sha = suspect.sha256;
+  const jobs::PolyhedronTried* best_t = det.best ? &det.tried[static_cast<std::size_t>(det.best_tried)] : nullptr;
   store::NewDetection d;
   d.suspect_sha256 = sha;
   d.suspect_name = name;
+  d.verdict = det.verdict;
+  d.asset_id = det.asset_id;
+  d.copy_id = det.copy_id;
+  d.customer_id = det.customer_id;
+  d.decoded_payload_hex = det.decoded_payload_hex;
   json details;
-  details["match"] = match;
-  details["copies_tried"] = total;
+  details["match"] = det.match;
+  details["copies_tried"] = det.copies_tried;
   details["p_threshold"] = cfg.p_threshold;
   details["candidates"] = json::array();
-  const jobs::CopyScore* best = nullptr;
-  const Tried* best_t = nullptr;
-  for (auto& t : tried) {
+  for (const auto& t : det.tried) {
     json cj{{"asset_id", t.asset_id},
             {"polyhedron_id", t.polyhedron_id},
-            {"resync_method", t.aligned.method},
-            {"resync_level", t.aligned.level},
-            {"resync_residual", std::isfinite(t.aligned.residual) ? t.aligned.residual : -1.0},
-            {"matched_fraction", t.aligned.matched_fraction},
+            {"resync_method", t.alignment.method},
+            {"resync_level", t.alignment.level},
+            {"resync_residual", std::isfinite(t.alignment.residual) ? t.alignment.residual : -1.0},
+            {"matched_fraction", t.alignment.matched_fraction},
             {"copies", json::array()}};
-    for (auto& s : t.verdict.scores) {
-      s.corrected_p = std::min(1.0, s.p_value * std::max(1, total));
+    for (const auto& s : t.scores)
       cj["copies"].push_back({{"copy_id", s.copy_id},
                               {"correlation", s.correlation},
                               {"p_value", s.corrected_p},
@@ -597,54 +407,22 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
                               {"null_sd", s.null_sd},
                               {"payload_matches", s.payload_matches},
                               {"bit_error_rate", s.bit_error_rate}});
-      if (!best || s.corrected_p < best->corrected_p ||
-          (s.corrected_p == best->corrected_p && s.correlation > best->correlation))
-        best = &s, best_t = &t;
-    }
     details["candidates"].push_back(cj);
   }
-  std::string inconclusive_reason;  // why a matching mark is not an attribution
-  if (candidates.empty()) {
-    d.verdict = "unknown asset";
-  } else if (!best) {
-    d.verdict = "no watermark found";
-    d.asset_id = candidates.front();
-  } else {
-    d.asset_id = best_t->asset_id;
-    d.correlation = best->correlation;
-    d.p_value = best->corrected_p;
-    details["best_neg_log10_corrected_p"] = std::max(0.0, best->neg_log10_p - std::log10(std::max(1, total)));
+  if (det.best) {
+    const jobs::CopyScore& best = *det.best;
+    d.correlation = best.correlation;
+    d.p_value = best.corrected_p;
+    details["best_neg_log10_corrected_p"] = det.best_neg_log10_corrected_p;
     // Uncorrected, as computed: the verdict's p is the larger of the two, then Bonferroni.
-    details["best_binomial_p"] = best->binomial_p;
-    details["best_calibrated_p"] = best->calibrated_p;
-    details["best_null_sd"] = best->null_sd;
-    details["resync_method"] = best_t->aligned.method;
-    details["resync_residual"] = best_t->aligned.residual;
-    d.resync_method = best_t->aligned.method;
-    if (std::isfinite(best_t->aligned.residual)) d.resync_residual = best_t->aligned.residual;
-    int bits = 32;
-    for (const auto& c : best_t->copies)
-      if (c.id == best->copy_id) {
-        bits = static_cast<int>(c.payload_hex.size()) * 4;
-        const int wrong = static_cast<int>(std::lround(best->bit_error_rate * bits));
-        switch (jobs::finding_of(best->corrected_p, cfg.p_threshold, best->payload_matches)) {
-          case jobs::Finding::present:
-            d.verdict = "attributed";
-            d.copy_id = c.id;
-            d.customer_id = c.customer_id;
-            break;
-          case jobs::Finding::inconclusive:
-            d.verdict = "inconclusive";
-            inconclusive_reason = jobs::inconclusive_reason("copy " + std::to_string(c.id), "corrected p",
-                                                            best->corrected_p, cfg.p_threshold, wrong, bits);
-            break;
-          case jobs::Finding::absent:
-            break;
-        }
-      }
-    d.decoded_payload_hex = jobs::payload_hex(best->decoded_payload, bits);
-    if (d.verdict.empty()) d.verdict = "no watermark found";
-    details["best_copy_id"] = best->copy_id;
+    details["best_binomial_p"] = best.binomial_p;
+    details["best_calibrated_p"] = best.calibrated_p;
+    details["best_null_sd"] = best.null_sd;
+    details["resync_method"] = best_t->alignment.method;
+    details["resync_residual"] = best_t->alignment.residual;
+    d.resync_method = best_t->alignment.method;
+    if (std::isfinite(best_t->alignment.residual)) d.resync_residual = best_t->alignment.residual;
+    details["best_copy_id"] = best.copy_id;
   }
   d.details_json = details.dump();
 
@@ -652,8 +430,8 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
   rec.detections.push_back(d);
   rec.audit.push_back({ctx.worker_id, "detect", "job:" + std::to_string(job.id),
                        json{{"suspect_sha256", sha}, {"verdict", d.verdict}}.dump()});
-  json result{{"verdict", d.verdict}, {"suspect_sha256", sha}, {"copies_tried", total}, {"match", match}};
-  if (!inconclusive_reason.empty()) result["reason"] = inconclusive_reason;
+  json result{{"verdict", d.verdict}, {"suspect_sha256", sha}, {"copies_tried", det.copies_tried}, {"match", det.match}};
+  if (!det.reason.empty()) result["reason"] = det.reason;
   if (d.asset_id) result["asset_id"] = *d.asset_id;
   if (d.copy_id) result["copy_id"] = *d.copy_id;
   if (d.customer_id) {
@@ -667,13 +445,13 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
     if (details.contains(k)) result[std::string(k).substr(5)] = details[k];
   if (!d.decoded_payload_hex.empty()) result["decoded_payload"] = d.decoded_payload_hex;
   if (best_t) {
-    result["resync_method"] = best_t->aligned.method;
-    result["resync_residual"] = best_t->aligned.residual;
+    result["resync_method"] = best_t->alignment.method;
+    result["resync_residual"] = best_t->alignment.residual;
   }
   rec.result_json = result.dump();
   spdlog::info("detect {}: {} (match: {}; {} copies tried; best corrected p {:.3g}; resync {} residual {:.3g})", name,
-               d.verdict, match.empty() ? "none" : match, total, d.p_value ? *d.p_value : 1.0,
-               best_t ? best_t->aligned.method : "none", best_t ? best_t->aligned.residual : 0.0);
+               d.verdict, det.match.empty() ? "none" : det.match, det.copies_tried, d.p_value ? *d.p_value : 1.0,
+               best_t ? best_t->alignment.method : "none", best_t ? best_t->alignment.residual : 0.0);
   if (contexts) {
     const ContextCache::Stats cs = contexts->stats();
     spdlog::debug("resync contexts: {} held ({} in use), {:.1f} of {:.0f} MB; {} built, {} reused, {} evicted",

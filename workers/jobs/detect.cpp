@@ -8,7 +8,6 @@
 
 #include "jobs/payload.h"
 #include "registration/nearest_neighbours.h"
-#include "watermark/null_calibration.h"
 
 namespace mm::jobs {
 
@@ -82,11 +81,23 @@ std::string inconclusive_reason(const std::string& what, const std::string& p_na
          std::to_string(wrong_bits) + " of " + std::to_string(bits) + " bits wrong";
 }
 
-Verdict detect_copy(const PreparedAsset& asset, const Points& registered,
-                    const std::vector<CopyCandidate>& copies, double p_threshold) {
-  Verdict v;
-  v.copies_tried = static_cast<int>(copies.size());
-  const double tried = std::max<double>(1.0, static_cast<double>(copies.size()));
+MarkP verdict_p(const Extraction& e, const NullCalibration& cal) {
+  if (e.neg_log10_p <= cal.neg_log10_p) return {e.p_value, e.neg_log10_p};
+  return {cal.p, cal.neg_log10_p};
+}
+
+double corrected_p(double p, int copies_tried) {
+  return std::min(1.0, p * std::max(1.0, static_cast<double>(copies_tried)));
+}
+
+bool better_copy(const CopyScore& a, const CopyScore& b) {
+  if (a.corrected_p != b.corrected_p) return a.corrected_p < b.corrected_p;
+  return a.correlation > b.correlation;
+}
+
+std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,
+                                    const std::vector<CopyCandidate>& copies) {
+  std::vector<CopyScore> scores;
   for (const auto& c : copies) {
     Extraction e = extract(asset.basis, asset.control.points, registered, c.settings.message_bits,
                            c.key, c.nonce, c.settings.params);
@@ -101,24 +112,29 @@ Verdict detect_copy(const PreparedAsset& asset, const Points& registered,
     s.calibrated_neg_log10_p = cal.neg_log10_p;
     s.null_mean = cal.mean;
     s.null_sd = cal.sd;
-    // The more conservative of the two (compared in -log10, which survives underflow).
-    const bool binomial_bound = e.neg_log10_p <= cal.neg_log10_p;
-    s.p_value = binomial_bound ? e.p_value : cal.p;
-    s.neg_log10_p = binomial_bound ? e.neg_log10_p : cal.neg_log10_p;
-    s.corrected_p = std::min(1.0, s.p_value * tried);
+    const MarkP mp = verdict_p(e, cal);
+    s.p_value = mp.p;
+    s.neg_log10_p = mp.neg_log10_p;
+    s.corrected_p = s.p_value;
     s.decoded_payload = bits_to_payload(e.message);
     s.payload_matches = s.decoded_payload == c.payload;
     std::vector<bool> expected = payload_to_bits(c.payload, c.settings.message_bits);
     int wrong = 0;
     for (std::size_t i = 0; i < expected.size() && i < e.message.size(); ++i) wrong += expected[i] != e.message[i];
     s.bit_error_rate = expected.empty() ? 0.0 : static_cast<double>(wrong) / static_cast<double>(expected.size());
-    v.scores.push_back(s);
+    scores.push_back(s);
   }
+  return scores;
+}
+
+Verdict detect_copy(const PreparedAsset& asset, const Points& registered,
+                    const std::vector<CopyCandidate>& copies, double p_threshold) {
+  Verdict v;
+  v.copies_tried = static_cast<int>(copies.size());
+  v.scores = score_copies(asset, registered, copies);
+  for (auto& s : v.scores) s.corrected_p = corrected_p(s.p_value, v.copies_tried);
   if (!v.scores.empty()) {
-    v.best = *std::min_element(v.scores.begin(), v.scores.end(), [](const CopyScore& a, const CopyScore& b) {
-      if (a.corrected_p != b.corrected_p) return a.corrected_p < b.corrected_p;
-      return a.correlation > b.correlation;
-    });
+    v.best = *std::min_element(v.scores.begin(), v.scores.end(), better_copy);
     v.attributed = finding_of(v.best.corrected_p, p_threshold, v.best.payload_matches) == Finding::present;
   }
   return v;

@@ -16,6 +16,7 @@
 
 #include "jobs/protect.h"
 #include "registration/resynchronize.h"
+#include "watermark/null_calibration.h"
 
 namespace mm::jobs {
 
@@ -78,7 +79,25 @@ Finding finding_of(double p, double p_threshold, bool payload_matches);
 std::string inconclusive_reason(const std::string& what, const std::string& p_name, double p, double p_threshold,
                                 int wrong_bits, int bits);
 
-// `registered`: the suspect resynchronised to asset.control (resynchronize(...).points).
+// A mark's p-value for the verdict: the more conservative of extract()'s exact tail and the
+// empirical-null tail, compared in -log10 (which survives underflow).
+struct MarkP {
+  double p = 1;
+  double neg_log10_p = 0;
+};
+MarkP verdict_p(const Extraction& extraction, const NullCalibration& calibration);
+
+// Each copy's score of a suspect resynchronised to asset.control (resynchronize(...).points),
+// uncorrected (corrected_p = p_value), in input order.
+std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,
+                                    const std::vector<CopyCandidate>& copies);
+// Bonferroni: min(1, p x copies tried).
+double corrected_p(double p, int copies_tried);
+// The better of two scores for the verdict: the smaller corrected p, then the larger correlation.
+bool better_copy(const CopyScore& a, const CopyScore& b);
+
+// One polyhedron's copies alone: score_copies, corrected for copies.size(), the best by
+// better_copy and its finding. detect_suspect() applies the same rule over every candidate.
 Verdict detect_copy(const PreparedAsset& asset, const Points& registered,
                     const std::vector<CopyCandidate>& copies, double p_threshold);
 

@@ -1,0 +1,249 @@
+#include "jobs/detect_suspect.h"
+
+#include <algorithm>
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "jobs/payload.h"
+#include "meshio/normalize.h"
+
+namespace mm::jobs {
+
+namespace {
+
+using nlohmann::json;
+
+const char* method_name(Method m) { return m == Method::Additive ? "additive" : "multiplicative"; }
+
+// The asset's shape signature from one of its polyhedra; rows of the vertex-based era are
+// recomputed from the original, so every asset compares with the same signature version.
+std::optional<ShapeSignature> asset_signature(DetectionStore& st, std::int64_t asset_id,
+                                              const std::vector<IssuedCopyRecord>& copies,
+                                              std::vector<std::string>* warnings) {
+  for (const auto& c : copies) {
+    auto row = st.polyhedron(asset_id, copy_prepare_key(c.params_json));
+    if (!row) continue;
+    try {
+      auto sig = ShapeSignature::from_json(json::parse(row->meta_json).at("signature").dump());
+      if (sig.version == ShapeSignature{}.version) return sig;
+      auto original = st.original(asset_id);
+      if (!original) return std::nullopt;
+      return shape_signature(*original);
+    } catch (const std::exception& e) {
+      warnings->push_back("asset " + std::to_string(asset_id) + ": no usable shape signature: " + e.what());
+      return std::nullopt;
+    }
+  }
+  return std::nullopt;
+}
+
+// Candidate assets in the order they are tried, and how they were found.
+std::vector<std::int64_t> candidate_assets(DetectionStore& st, const Suspect& suspect,
+                                           const std::map<std::int64_t, std::vector<IssuedCopyRecord>>& copies_of,
+                                           int max_candidates, std::string* match,
+                                           std::vector<std::string>* warnings) {
+  std::vector<std::int64_t> candidates;
+  auto add = [&](std::int64_t id) {
+    if (std::find(candidates.begin(), candidates.end(), id) == candidates.end()) candidates.push_back(id);
+  };
+  for (const auto& [asset_id, copies] : copies_of)
+    for (const auto& c : copies) {
+      try {
+        for (const auto& f : json::parse(c.outputs_json).value("files", json::array()))
+          if (f.value("sha256", "") == suspect.sha256) {
+            add(asset_id);
+            if (match->empty())
+              *match = "hash of issued copy " + std::to_string(c.id) + " (" + f.value("role", "decoded") + ")";
+          }
+      } catch (const json::exception&) {
+      }
+    }
+  if (auto a = st.asset_with_sha256(suspect.sha256)) {
+    add(*a);
+    if (match->empty()) *match = "hash of original asset " + std::to_string(*a);
+  }
+  auto named = suspect.stream_metadata.find("asset");
+  if (candidates.empty() && named != suspect.stream_metadata.end())
+    if (auto a = st.asset_with_sha256(named->second)) add(*a), *match = "stream metadata";
+  if (candidates.empty()) {
+    ShapeSignature sig = shape_signature(suspect.mesh);
+    std::vector<std::pair<double, std::int64_t>> ranked;
+    for (const auto& [asset_id, copies] : copies_of) {
+      auto as = asset_signature(st, asset_id, copies, warnings);
+      if (!as) continue;
+      double d = signature_distance(sig, *as);
+      if (d < 0.5) ranked.push_back({d, asset_id});
+    }
+    std::sort(ranked.begin(), ranked.end());
+    for (const auto& r : ranked) {
+      if (static_cast<int>(candidates.size()) >= max_candidates) break;
+      add(r.second);
+    }
+    if (!candidates.empty()) *match = "shape signature";
+  }
+  return candidates;
+}
+
+std::vector<CopyCandidate> copy_candidates(DetectionStore& st, const std::vector<IssuedCopyRecord>& copies) {
+  std::vector<CopyCandidate> cands;
+  for (const auto& c : copies) {
+    CopyCandidate cc;
+    cc.copy_id = c.id;
+    if (c.nonce.size() != cc.nonce.size()) continue;
+    std::copy(c.nonce.begin(), c.nonce.end(), cc.nonce.begin());
+    try {
+      cc.payload = parse_payload_hex(c.payload_hex);
+      cc.settings = copy_settings(c.params_json);
+    } catch (const std::exception&) {
+      continue;
+    }
+    cc.key = st.customer_key(c.customer_id, c.key_version);
+    cands.push_back(cc);
+  }
+  return cands;
+}
+
+void decide(Detection& d, double p_threshold) {
+  if (d.candidates.empty()) {
+    d.verdict = "unknown asset";
+    return;
+  }
+  for (int t = 0; t < static_cast<int>(d.tried.size()); ++t)
+    for (auto& s : d.tried[static_cast<std::size_t>(t)].scores) {
+      s.corrected_p = corrected_p(s.p_value, d.copies_tried);
+      if (!d.best || better_copy(s, *d.best)) d.best = s, d.best_tried = t;
+    }
+  if (!d.best) {
+    d.verdict = "no watermark found";
+    d.asset_id = d.candidates.front();
+    return;
+  }
+  const CopyScore& best = *d.best;
+  const PolyhedronTried& where = d.tried[static_cast<std::size_t>(d.best_tried)];
+  d.asset_id = where.asset_id;
+  d.best_neg_log10_corrected_p = std::max(0.0, best.neg_log10_p - std::log10(std::max(1, d.copies_tried)));
+  int bits = 32;
+  for (const auto& c : where.copies)
+    if (c.id == best.copy_id) {
+      bits = static_cast<int>(c.payload_hex.size()) * 4;
+      const int wrong = static_cast<int>(std::lround(best.bit_error_rate * bits));
+      switch (finding_of(best.corrected_p, p_threshold, best.payload_matches)) {
+        case Finding::present:
+          d.verdict = "attributed";
+          d.copy_id = c.id;
+          d.customer_id = c.customer_id;
+          break;
+        case Finding::inconclusive:
+          d.verdict = "inconclusive";
+          d.reason = inconclusive_reason("copy " + std::to_string(c.id), "corrected p", best.corrected_p,
+                                         p_threshold, wrong, bits);
+          break;
+        case Finding::absent:
+          break;
+      }
+    }
+  d.decoded_payload_hex = payload_hex(best.decoded_payload, bits);
+  if (d.verdict.empty()) d.verdict = "no watermark found";
+}
+
+}  // namespace
+
+std::string copy_params_json(const WatermarkSettings& s, const std::string& prepare_key,
+                             const std::string& basis_sha256) {
+  return json{{"method", method_name(s.params.method)},
+              {"strength", s.params.strength},
+              {"threshold", s.params.threshold},
+              {"message_bits", s.message_bits},
+              {"prepare", prepare_key},
+              {"basis_sha256", basis_sha256}}
+      .dump();
+}
+
+WatermarkSettings copy_settings(const std::string& params_json) {
+  const json j = json::parse(params_json);
+  WatermarkSettings s;
+  s.params.method = j.at("method").get<std::string>() == "additive" ? Method::Additive : Method::Multiplicative;
+  s.params.strength = j.at("strength").get<double>();
+  s.params.threshold = j.at("threshold").get<double>();
+  s.message_bits = j.at("message_bits").get<int>();
+  return s;
+}
+
+std::string copy_prepare_key(const std::string& params_json) {
+  try {
+    return json::parse(params_json).value("prepare", "");
+  } catch (const json::exception&) {
+    return "";
+  }
+}
+
+Alignment align_suspect(const PreparedAsset& asset, const std::string& polyhedron_blob, const Mesh& suspect,
+                        const std::string& name, const ContextSource& contexts) {
+  Alignment a;
+  try {
+    // Building a context costs more than a detection, so callers may keep them, keyed by the
+    // polyhedron's content address (a blob never changes).
+    auto build = [&asset] { return make_resync_context(asset); };
+    std::shared_ptr<const ResyncContext> ctx =
+        contexts ? contexts(polyhedron_blob, build) : std::make_shared<const ResyncContext>(build());
+    ResyncOptions o;
+    o.source = name;
+    // Copies are issued in the part's units (protect undoes the normalisation), so a copy leaked
+    // as issued lies in the asset's frame once normalised, where the unmoved pairing explains it
+    // exactly; aligned by a fitted similarity instead, a part symmetric about an axis may settle
+    // on a symmetric pose (abc7's issued STL copies were paired exactly but permuted).
+    Mesh in_frame = suspect;
+    apply(asset.normalization, in_frame.points);
+    Resynchronized r = resynchronize_suspect(*ctx, in_frame, o);
+    for (int l = 0; l <= ctx->max_level(); ++l) a.levels_built += ctx->level_built(l) ? std::to_string(l) : "-";
+    a.context_mb = static_cast<double>(ctx->memory_bytes()) / (1 << 20);
+    a.points = std::move(r.points);
+    a.method = r.method;
+    a.level = r.level;
+    a.residual = r.residual_rms;
+    a.matched_fraction = r.matched_fraction;
+  } catch (const InputError& e) {  // this candidate does not fit; others may
+    a.method = std::string("none: ") + e.reason();
+  }
+  return a;
+}
+
+Detection detect_suspect(DetectionStore& st, const Suspect& suspect, const DetectOptions& options) {
+  std::map<std::int64_t, std::vector<IssuedCopyRecord>> copies_of;
+  for (auto& c : st.issued_copies()) copies_of[c.asset_id].push_back(std::move(c));
+
+  Detection d;
+  d.candidates = candidate_assets(st, suspect, copies_of, options.max_candidates, &d.match, &d.warnings);
+
+  // Every copy ever issued for a candidate, grouped by the polyhedron it was embedded in (a
+  // change of compression options gives later copies another polyhedron).
+  for (std::int64_t asset_id : d.candidates) {
+    std::map<std::string, std::vector<IssuedCopyRecord>> groups;
+    for (const auto& c : copies_of[asset_id]) groups[copy_prepare_key(c.params_json)].push_back(c);
+    for (auto& [key, copies] : groups) {
+      auto row = st.polyhedron(asset_id, key);
+      if (!row) {
+        d.warnings.push_back("asset " + std::to_string(asset_id) + ": " + std::to_string(copies.size()) +
+                             " copies name a polyhedron that is not cached (\"" + key + "\")");
+        continue;
+      }
+      PreparedAsset prep = decode_prepared(st.blob(row->polyhedron_blob), st.blob(row->basis_blob),
+                                           "asset " + std::to_string(asset_id) + " polyhedron " +
+                                               std::to_string(row->id));
+      PolyhedronTried t;
+      t.asset_id = asset_id;
+      t.polyhedron_id = row->id;
+      t.alignment = align_suspect(prep, row->polyhedron_blob, suspect.mesh, suspect.name, options.contexts);
+      t.copies = std::move(copies);
+      const std::vector<CopyCandidate> cands = copy_candidates(st, t.copies);
+      if (std::isfinite(t.alignment.residual) && prep.control.num_vertices() == t.alignment.points.rows())
+        t.scores = score_copies(prep, t.alignment.points, cands);
+      d.copies_tried += static_cast<int>(t.scores.size());
+      d.tried.push_back(std::move(t));
+    }
+  }
+  decide(d, options.p_threshold);
+  return d;
+}
+
+}  // namespace mm::jobs
