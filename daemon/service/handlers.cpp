@@ -37,13 +37,6 @@ namespace {
 
 constexpr int kAllCopies = 1000000;
 
-// Spectral coefficients per payload bit, floor(3n / l) (the paper's r), below which a protect job
-// warns: abc7's 24 control vertices spread a 32-bit payload over 2 each, and its copies leaked
-// unmodified, paired exactly, reached a corrected p of only 1e-5.9 to 1e-7 with six customers
-// (short of detect.p_threshold's 1e-6 in 1 run of 20); at 16 bits, 4 each, 40 runs of 40 passed
-// (tests/daemon/test_e2e.cpp, E2E.CopiesLeakedAsIssuedAreAttributed).
-constexpr int kWeakSpread = 4;
-
 std::string lower(std::string s) {
   for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
@@ -319,15 +312,9 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   rec.audit.push_back({ctx.worker_id, "copy.issue", "asset:" + std::to_string(asset.id),
                        json{{"customer", customer->name}, {"key_version", ck.version}, {"output", out},
                             {"stream", stream_path}}.dump()});
-  const int spread = 3 * prep.control.num_vertices() / ws.message_bits;
-  std::string warning;
-  if (spread < kWeakSpread) {
-    warning = name + ": " + std::to_string(prep.control.num_vertices()) + " control vertices spread the " +
-              std::to_string(ws.message_bits) + "-bit payload over " + std::to_string(spread) +
-              " coefficients a bit (fewer than " + std::to_string(kWeakSpread) +
-              "): a copy may not be attributed even if leaked unmodified; fewer watermark.message_bits spread it wider";
-    spdlog::warn("job {}: {}", job.id, warning);
-  }
+  const int spread = jobs::coefficients_per_bit(prep, ws.message_bits);
+  const std::string warning = jobs::weak_spread_warning(name, prep, ws.message_bits);
+  if (!warning.empty()) spdlog::warn("job {}: {}", job.id, warning);
   json result{{"asset_id", asset.id},
               {"asset_sha256", asset.sha256},
               {"customer", customer->name},

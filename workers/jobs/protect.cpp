@@ -31,4 +31,17 @@ CopyFiles make_copy_files(const PreparedAsset& asset, const Mesh& marked_control
   return f;
 }
 
+int coefficients_per_bit(const PreparedAsset& asset, int message_bits) {
+  return 3 * asset.control.num_vertices() / message_bits;
+}
+
+std::string weak_spread_warning(const std::string& name, const PreparedAsset& asset, int message_bits) {
+  const int spread = coefficients_per_bit(asset, message_bits);
+  if (spread >= kWeakSpread) return "";
+  return name + ": " + std::to_string(asset.control.num_vertices()) + " control vertices spread the " +
+         std::to_string(message_bits) + "-bit payload over " + std::to_string(spread) +
+         " coefficients a bit (fewer than " + std::to_string(kWeakSpread) +
+         "): a copy may not be attributed even if leaked unmodified; fewer watermark.message_bits spread it wider";
+}
+
 }  // namespace mm::jobs

@@ -21,6 +21,15 @@ struct WatermarkSettings {
 Mesh make_copy(const PreparedAsset& asset, const Key& key, const Nonce& nonce,
                std::uint64_t payload, const WatermarkSettings& settings);
 
+// Spectral coefficients per payload bit, floor(3n / bits) for n control vertices (the paper's r).
+int coefficients_per_bit(const PreparedAsset& asset, int message_bits);
+// Below this spread a copy leaked unmodified may not be attributed: abc7's 24 control vertices
+// spread a 32-bit payload over 2 a bit and reached a corrected p of only 1e-5.9 to 1e-7 with six
+// customers; at 16 bits, 4 a bit, every run passed (E2E.CopiesLeakedAsIssuedAreAttributed).
+constexpr int kWeakSpread = 4;
+// The protect job's warning when the spread is under kWeakSpread; "" otherwise.
+std::string weak_spread_warning(const std::string& name, const PreparedAsset& asset, int message_bits);
+
 struct StreamSettings {
   // The quantisation step (largest side / 2^bits) must stay well below the mark's move in the
   // unit box (T a = 5e-4 by default): 16 bits give 1.5e-5.
