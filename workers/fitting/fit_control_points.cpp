@@ -11,7 +11,7 @@
 #include <set>
 #include <stdexcept>
 
-#include "fitting/closest_point_bvh.h"
+#include "geometry/closest_point_bvh.h"
 #include "subdivision/subdivide.h"
 
 namespace mm {

@@ -7,7 +7,7 @@
 #include <unordered_set>
 
 #include "jobs/payload.h"
-#include "registration/nearest_neighbours.h"
+#include "geometry/nearest_neighbours.h"
 
 namespace mm::jobs {
 

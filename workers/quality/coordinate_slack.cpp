@@ -6,7 +6,7 @@
 #include <array>
 #include <cmath>
 
-#include "quality/triangle_distance_tree.h"
+#include "geometry/triangle_distance_tree.h"
 #include "subdivision/subdivide.h"
 
 namespace mm {

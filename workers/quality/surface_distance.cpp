@@ -12,7 +12,7 @@
 #include <random>
 #include <string>
 
-#include "quality/triangle_distance_tree.h"
+#include "geometry/triangle_distance_tree.h"
 #include "subdivision/decompress.h"
 
 namespace mm {

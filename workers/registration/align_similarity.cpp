@@ -1,6 +1,6 @@
 #include "registration/align_similarity.h"
 
-#include "registration/nearest_neighbours.h"
+#include "geometry/nearest_neighbours.h"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>

@@ -13,8 +13,8 @@
 #include <random>
 #include <stdexcept>
 
-#include "fitting/closest_point.h"
-#include "registration/nearest_neighbours.h"
+#include "geometry/closest_point.h"
+#include "geometry/nearest_neighbours.h"
 
 namespace mm {
 

@@ -12,7 +12,7 @@
 #include <memory>
 #include <vector>
 
-#include "quality/bvh_layout.h"
+#include "geometry/bvh_layout.h"
 
 namespace mm {
 

@@ -12,7 +12,7 @@
 #include <utility>
 #include <vector>
 
-#include "fitting/closest_point.h"
+#include "geometry/closest_point.h"
 #include "meshio/mesh.h"
 
 namespace mm {

@@ -1,7 +1,7 @@
-#include "quality/triangle_distance_tree.h"
+#include "geometry/triangle_distance_tree.h"
 
-#include "quality/bvh_layout.h"
-#include "quality/triangle_closest_point.h"
+#include "geometry/bvh_layout.h"
+#include "geometry/triangle_closest_point.h"
 
 #include <CGAL/Simple_cartesian.h>
 

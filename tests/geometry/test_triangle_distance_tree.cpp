@@ -17,7 +17,7 @@
 #include "common/shared_meshes.h"
 #include "meshio/read_mesh.h"
 #include "quality/surface_distance.h"
-#include "quality/triangle_distance_tree.h"
+#include "geometry/triangle_distance_tree.h"
 
 namespace {
 

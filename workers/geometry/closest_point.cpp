@@ -1,4 +1,4 @@
-#include "fitting/closest_point.h"
+#include "geometry/closest_point.h"
 
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>

@@ -5,7 +5,7 @@
 
 #include <random>
 
-#include "fitting/closest_point_bvh.h"
+#include "geometry/closest_point_bvh.h"
 
 namespace mm {
 namespace {

@@ -1,4 +1,4 @@
-#include "registration/nearest_neighbours.h"
+#include "geometry/nearest_neighbours.h"
 
 #include <algorithm>
 #include <limits>

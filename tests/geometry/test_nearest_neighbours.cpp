@@ -3,7 +3,7 @@
 
 #include <random>
 
-#include "registration/nearest_neighbours.h"
+#include "geometry/nearest_neighbours.h"
 
 namespace {
 

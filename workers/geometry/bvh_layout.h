@@ -1,5 +1,5 @@
-// The layout both closest-point trees share (quality/triangle_distance_tree.h for the dense
-// measurement, fitting/closest_point_bvh.h for the fit): a binned surface-area-heuristic split
+// The layout both closest-point trees share (geometry/triangle_distance_tree.h for the dense
+// measurement, geometry/closest_point_bvh.h for the fit): a binned surface-area-heuristic split
 // along the longest axis of the centroids' box (12 bins), a median split when every centroid
 // falls in one bin or the tree gets deep. Tighter boxes than a median split, so fewer nodes are
 // visited per query (fandisk: -12 % query instructions for +65 % build time, which is small).

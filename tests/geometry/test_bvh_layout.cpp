@@ -3,7 +3,7 @@
 #include <random>
 #include <set>
 
-#include "quality/bvh_layout.h"
+#include "geometry/bvh_layout.h"
 
 namespace {
 

@@ -1,4 +1,4 @@
-#include "quality/bvh_layout.h"
+#include "geometry/bvh_layout.h"
 
 #include <algorithm>
 #include <limits>

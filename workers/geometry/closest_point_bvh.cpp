@@ -1,7 +1,7 @@
-#include "fitting/closest_point_bvh.h"
+#include "geometry/closest_point_bvh.h"
 
-#include "quality/bvh_layout.h"
-#include "quality/triangle_closest_point.h"
+#include "geometry/bvh_layout.h"
+#include "geometry/triangle_closest_point.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "meshio/mesh.h"
-#include "quality/bvh_layout.h"
+#include "geometry/bvh_layout.h"
 
 namespace mm {
 
