@@ -4,11 +4,14 @@
 #include <string>
 #include <vector>
 
+#include "support/hex.h"
+#include "support/sha256.h"
+
 namespace mm::cli {
 
 std::vector<std::uint8_t> read_file_bytes(const std::string& path);  // throws InputError
 
-// Writes to a temporary name in the same folder, fsyncs, renames: readers never see a half file.
+// support::write_file_atomic with InputError naming the path: readers never see a half file.
 // `mode` is applied before the data is written (0600 for secrets).
 void write_file_atomic(const std::string& path, const std::string& data, unsigned mode = 0644);
 
@@ -17,10 +20,10 @@ void write_file_atomic(const std::string& path, const std::string& data, unsigne
 // nothing behind) when `path` exists; throws InputError for other failures.
 bool write_file_exclusive(const std::string& path, const std::string& data, unsigned mode = 0600);
 
-std::string sha256_hex(const std::uint8_t* data, std::size_t size);
-std::string sha256_file_hex(const std::string& path);
-
-std::string to_hex(const std::uint8_t* data, std::size_t size);
-std::vector<std::uint8_t> from_hex(const std::string& hex);  // throws std::invalid_argument
+// Hashes and hex: the project's one implementation (workers/support).
+using support::from_hex;
+using support::sha256_file_hex;
+using support::sha256_hex;
+using support::to_hex;
 
 }  // namespace mm::cli

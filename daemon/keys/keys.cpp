@@ -10,6 +10,9 @@
 #include <cstring>
 #include <fstream>
 #include <sstream>
+#include <system_error>
+
+#include "support/atomic_file.h"
 
 namespace mm::keys {
 namespace {
@@ -150,32 +153,19 @@ void create_master_key_file(const std::string& path) {
   SecretKey k = SecretKey::random();
   char hex[2 * kKeyBytes + 1];
   sodium_bin2hex(hex, sizeof hex, k.data(), kKeyBytes);
-  std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0600);
-  if (fd < 0) {
-    sodium_memzero(hex, sizeof hex);
-    throw KeyError("master key file " + path + ": cannot create: " + errno_text());
-  }
-  ::fchmod(fd, 0600);  // regardless of umask
   std::string body = std::string(hex) + "\n";
   sodium_memzero(hex, sizeof hex);
-  bool ok = ::write(fd, body.data(), body.size()) == static_cast<ssize_t>(body.size()) && ::fsync(fd) == 0;
+  bool written = false;
+  std::string why;
+  try {
+    // Exclusive: never overwrite a key someone else made a moment earlier.
+    written = support::write_file_exclusive(path, body, 0600);
+    if (!written) why = "it appeared meanwhile";
+  } catch (const std::system_error& e) {
+    why = e.what();
+  }
   sodium_memzero(body.data(), body.size());
-  ::close(fd);
-  // link() fails if the target appeared meanwhile: never overwrite a key someone else just made.
-  if (!ok || ::link(tmp.c_str(), path.c_str()) != 0) {
-    std::string why = errno_text();
-    ::unlink(tmp.c_str());
-    throw KeyError("master key file " + path + ": cannot write: " + why);
-  }
-  ::unlink(tmp.c_str());
-  std::string dir = path.find('/') == std::string::npos ? "." : path.substr(0, path.find_last_of('/'));
-  if (dir.empty()) dir = "/";
-  int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dfd >= 0) {
-    ::fsync(dfd);
-    ::close(dfd);
-  }
+  if (!written) throw KeyError("master key file " + path + ": cannot write: " + why);
 }
 
 SealedKey seal_customer_key(const SecretKey& master, const SecretKey& key, std::int64_t customer_id,

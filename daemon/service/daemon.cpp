@@ -15,6 +15,7 @@
 #include <spdlog/spdlog.h>
 
 #include "service/handlers.h"
+#include "support/atomic_file.h"
 #include "store/home.h"
 
 namespace mm::service {
@@ -35,7 +36,7 @@ std::string host_prefix() {
   return std::string(host) + ":" + std::to_string(::getpid());
 }
 
-// Temporary files write_mesh leaves when a process dies mid-write ("." name ".tmp." 6 chars) in
+// Temporary files a writer leaves when a process dies mid-write (support/atomic_file.h) in
 // <output>/<customer>/. Only this daemon writes there, and none of its workers is running yet.
 int remove_stale_output_temps(const std::string& output_dir) {
   namespace fs = std::filesystem;
@@ -46,9 +47,7 @@ int remove_stale_output_temps(const std::string& output_dir) {
     std::error_code ec2;
     for (fs::directory_iterator f(d->path(), ec2), fend; !ec2 && f != fend; f.increment(ec2)) {
       std::string name = f->path().filename().string();
-      auto pos = name.rfind(".tmp.");
-      if (name.size() > 1 && name[0] == '.' && pos != std::string::npos && pos + 11 == name.size() &&
-          f->is_regular_file() && !f->is_symlink()) {
+      if (support::is_atomic_write_temporary(name) && f->is_regular_file() && !f->is_symlink()) {
         std::error_code ec3;
         if (fs::remove(f->path(), ec3)) ++n;
       }

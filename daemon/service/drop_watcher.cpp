@@ -12,6 +12,8 @@
 #include <spdlog/spdlog.h>
 #include <system_error>
 
+#include "support/atomic_file.h"
+
 namespace mm::service {
 
 namespace fs = std::filesystem;
@@ -34,33 +36,13 @@ bool lstat_is(const std::string& path, mode_t type) {
   return (st.st_mode & S_IFMT) == type;
 }
 
-// Hidden temporary name: scanners of done/ and failed/ skip dotfiles, and a crash leaves a name
-// remove_stale_reason_temps() recognises.
+// Hidden temporary name (support/atomic_file.h): scanners of done/ and failed/ skip dotfiles,
+// and a crash leaves a name remove_stale_reason_temps() recognises.
 void write_text_atomic(const std::string& path, const std::string& text) {
-  fs::path target(path);
-  std::string tmp = (target.parent_path() / ("." + target.filename().string() + ".tmp-" + std::to_string(::getpid()))).string();
-  int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw std::system_error(errno, std::generic_category(), "cannot write " + tmp);
-  const char* p = text.data();
-  std::size_t left = text.size();
-  while (left > 0) {
-    ssize_t w = ::write(fd, p, left);
-    if (w < 0) {
-      if (errno == EINTR) continue;
-      int e = errno;
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      throw std::system_error(e, std::generic_category(), "cannot write " + tmp);
-    }
-    p += w;
-    left -= static_cast<std::size_t>(w);
-  }
-  ::fsync(fd);
-  ::close(fd);
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    int e = errno;
-    ::unlink(tmp.c_str());
-    throw std::system_error(e, std::generic_category(), "cannot rename into " + path);
+  try {
+    support::write_file_atomic(path, text);
+  } catch (const std::system_error& e) {
+    throw std::system_error(e.code(), path + ": " + e.what());
   }
 }
 
@@ -271,7 +253,7 @@ int remove_stale_reason_temps(const std::string& drop_root) {
     for (fs::recursive_directory_iterator it(dir, fs::directory_options::none, ec), end; !ec && it != end;
          it.increment(ec)) {
       std::string name = it->path().filename().string();
-      if (name.size() > 1 && name[0] == '.' && name.find(".json.tmp-") != std::string::npos &&
+      if (support::is_atomic_write_temporary(name) && name.find(".json.tmp.") != std::string::npos &&
           it->is_regular_file() && !it->is_symlink()) {
         std::error_code ec2;
         if (fs::remove(it->path(), ec2)) ++n;

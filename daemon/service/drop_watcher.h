@@ -35,7 +35,7 @@ bool is_valid_customer_name(const std::string& name);  // [A-Za-z0-9._-]{1,64}, 
 std::optional<DropItem> classify_drop_path(const std::string& drop_root, const std::string& relative,
                                            std::string* why = nullptr);
 
-// Removes hidden temporary reason files (".<name>.json.tmp-<pid>") a crash left in done/ and
+// Removes hidden temporary reason files (".<name>.json.tmp.XXXXXX") a crash left in done/ and
 // failed/. Call at start, before any finish(). Returns how many were removed.
 int remove_stale_reason_temps(const std::string& drop_root);
 

@@ -27,6 +27,9 @@
 #include "jobs/protect.h"
 #include "meshio/read_mesh.h"
 #include "service/detection_store.h"
+#include "support/atomic_file.h"
+#include "support/hex.h"
+#include "support/sha256.h"
 
 namespace mm::service {
 
@@ -167,57 +170,14 @@ std::string copy_idempotency_key(const store::Job& job) {
   return job.idempotency_key.empty() ? "job:" + std::to_string(job.id) : job.idempotency_key;
 }
 
-// The stream file, written like write_mesh writes meshes: ".<name>.tmp.XXXXXX" beside it, fsync,
-// rename, fsync of the folder. The daemon removes such names left by a killed process at start
-// (remove_stale_output_temps); the codec's own writer uses another temporary name.
+// The stream file, written like write_mesh writes meshes (support/atomic_file.h); the daemon
+// removes temporaries a killed process left at start (remove_stale_output_temps).
 void write_bytes_atomic(const std::string& path, const std::vector<std::uint8_t>& bytes) {
-  fs::path target(path);
-  std::string tmpl = (target.parent_path() / ("." + target.filename().string() + ".tmp.XXXXXX")).string();
-  std::vector<char> name(tmpl.begin(), tmpl.end());
-  name.push_back('\0');
-  int fd = ::mkstemp(name.data());
-  if (fd < 0) throw std::system_error(errno, std::generic_category(), "cannot create a temporary file for " + path);
-  const std::string tmp(name.data());
-  auto fail = [&](const char* what) {
-    int e = errno;
-    ::close(fd);
-    ::unlink(tmp.c_str());
-    throw std::system_error(e, std::generic_category(), std::string(what) + " " + path);
-  };
-  ::fchmod(fd, 0644);
-  const std::uint8_t* p = bytes.data();
-  std::size_t left = bytes.size();
-  while (left > 0) {
-    ssize_t w = ::write(fd, p, left);
-    if (w < 0) {
-      if (errno == EINTR) continue;
-      fail("cannot write");
-    }
-    p += w;
-    left -= static_cast<std::size_t>(w);
+  try {
+    support::write_file_atomic(path, bytes);
+  } catch (const std::system_error& e) {
+    throw std::system_error(e.code(), path + ": " + e.what());
   }
-  if (::fsync(fd) != 0) fail("cannot fsync");
-  if (::close(fd) != 0) {
-    ::unlink(tmp.c_str());
-    throw std::system_error(errno, std::generic_category(), "cannot close " + path);
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    int e = errno;
-    ::unlink(tmp.c_str());
-    throw std::system_error(e, std::generic_category(), "cannot rename into " + path);
-  }
-  int dfd = ::open(target.parent_path().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dfd >= 0) {
-    ::fsync(dfd);
-    ::close(dfd);
-  }
-}
-
-std::string hex_of(const unsigned char* p, std::size_t n) {
-  static const char* digits = "0123456789abcdef";
-  std::string s;
-  for (std::size_t i = 0; i < n; ++i) s += digits[p[i] >> 4], s += digits[p[i] & 15];
-  return s;
 }
 
 }  // namespace
@@ -230,7 +190,7 @@ std::string output_base_for(const Config& cfg, const std::string& customer, cons
   std::string msg = "meshmark-output-v1|" + copy_key;
   crypto_generichash(h, sizeof h, reinterpret_cast<const unsigned char*>(msg.data()), msg.size(), nullptr, 0);
   std::string stem = fs::path(name).stem().string();
-  return (fs::path(cfg.output_dir) / customer / (stem + "-" + hex_of(h, sizeof h))).string();
+  return (fs::path(cfg.output_dir) / customer / (stem + "-" + support::to_hex(h, sizeof h))).string();
 }
 
 store::JobRecords run_protect(store::Store& st, const store::Job& job, const HandlerContext& ctx) {
@@ -289,7 +249,7 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   fs::create_directories(fs::path(base).parent_path());
   write_bytes_atomic(stream_path, files.stream);
   write_mesh(files.decoded, out);
-  const std::string stream_sha = store::sha256_file_hex(stream_path), out_sha = store::sha256_file_hex(out);
+  const std::string stream_sha = support::sha256_file_hex(stream_path), out_sha = support::sha256_file_hex(out);
 
   store::NewCopy nc;
   nc.asset_id = asset.id;

@@ -10,20 +10,13 @@
 #include <cstring>
 #include <random>
 
+#include "support/hex.h"
+#include "support/sha256.h"
+
 namespace mm::store {
 namespace {
 
 std::string errno_text() { return std::strerror(errno); }
-
-std::string hex(const unsigned char* d, std::size_t n) {
-  std::string s(2 * n, '0');
-  static const char* digits = "0123456789abcdef";
-  for (std::size_t i = 0; i < n; ++i) {
-    s[2 * i] = digits[d[i] >> 4];
-    s[2 * i + 1] = digits[d[i] & 15];
-  }
-  return s;
-}
 
 void make_dir(const std::string& dir) {
   if (::mkdir(dir.c_str(), 0700) != 0 && errno != EEXIST)
@@ -52,7 +45,7 @@ bool write_all(int fd, const std::uint8_t* p, std::size_t n) {
 std::string random_name() {
   unsigned char b[12];
   randombytes_buf(b, sizeof b);
-  return hex(b, sizeof b);
+  return support::to_hex(b, sizeof b);
 }
 
 // A temporary file in <root>/tmp, removed on destruction unless committed.
@@ -90,37 +83,6 @@ bool is_sha256_hex(const std::string& s) {
   return true;
 }
 
-std::string sha256_hex(const std::uint8_t* data, std::size_t size) {
-  if (sodium_init() < 0) throw BlobError("libsodium failed to initialize");
-  unsigned char h[crypto_hash_sha256_BYTES];
-  crypto_hash_sha256(h, data, size);
-  return hex(h, sizeof h);
-}
-
-std::string sha256_file_hex(const std::string& path) {
-  if (sodium_init() < 0) throw BlobError("libsodium failed to initialize");
-  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) throw BlobError(path + ": cannot open: " + errno_text());
-  crypto_hash_sha256_state st;
-  crypto_hash_sha256_init(&st);
-  std::vector<unsigned char> buf(1 << 16);
-  for (;;) {
-    ssize_t n = ::read(fd, buf.data(), buf.size());
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) {
-      std::string why = errno_text();
-      ::close(fd);
-      throw BlobError(path + ": read error: " + why);
-    }
-    if (n == 0) break;
-    crypto_hash_sha256_update(&st, buf.data(), static_cast<unsigned long long>(n));
-  }
-  ::close(fd);
-  unsigned char h[crypto_hash_sha256_BYTES];
-  crypto_hash_sha256_final(&st, h);
-  return hex(h, sizeof h);
-}
-
 FsBlobStore::FsBlobStore(std::string root) : root_(std::move(root)) {
   if (sodium_init() < 0) throw BlobError("libsodium failed to initialize");
   while (root_.size() > 1 && root_.back() == '/') root_.pop_back();
@@ -146,7 +108,7 @@ std::uint64_t FsBlobStore::size(const std::string& sha256) const {
 }
 
 std::string FsBlobStore::put(const std::uint8_t* data, std::size_t size) {
-  std::string h = sha256_hex(data, size);
+  std::string h = support::sha256_hex(data, size);
   if (contains(h)) return h;
   std::string dir = root_ + "/" + h.substr(0, 2);
   make_dir(dir);
@@ -162,8 +124,7 @@ std::string FsBlobStore::put_file(const std::string& src) {
   int in = ::open(src.c_str(), O_RDONLY | O_CLOEXEC);
   if (in < 0) throw BlobError(src + ": cannot open: " + errno_text());
   TempFile t(root_);
-  crypto_hash_sha256_state st;
-  crypto_hash_sha256_init(&st);
+  support::Sha256 hash;
   std::vector<unsigned char> buf(1 << 16);
   for (;;) {
     ssize_t n = ::read(in, buf.data(), buf.size());
@@ -174,7 +135,7 @@ std::string FsBlobStore::put_file(const std::string& src) {
       throw BlobError(src + ": read error: " + why);
     }
     if (n == 0) break;
-    crypto_hash_sha256_update(&st, buf.data(), static_cast<unsigned long long>(n));
+    hash.update(buf.data(), static_cast<std::size_t>(n));
     if (!write_all(t.fd, buf.data(), static_cast<std::size_t>(n))) {
       std::string why = errno_text();
       ::close(in);
@@ -182,9 +143,7 @@ std::string FsBlobStore::put_file(const std::string& src) {
     }
   }
   ::close(in);
-  unsigned char hb[crypto_hash_sha256_BYTES];
-  crypto_hash_sha256_final(&st, hb);
-  std::string h = hex(hb, sizeof hb);
+  std::string h = hash.hex();
   if (contains(h)) return h;  // TempFile removes its copy
   std::string dir = root_ + "/" + h.substr(0, 2);
   make_dir(dir);
@@ -213,7 +172,7 @@ std::vector<std::uint8_t> FsBlobStore::get(const std::string& sha256) const {
     out.insert(out.end(), buf.begin(), buf.begin() + n);
   }
   ::close(fd);
-  if (sha256_hex(out.data(), out.size()) != sha256)
+  if (support::sha256_hex(out) != sha256)
     throw BlobError("blob " + sha256 + " is corrupted: its content no longer matches its hash");
   return out;
 }

@@ -58,7 +58,5 @@ class FsBlobStore : public BlobStore {
 };
 
 bool is_sha256_hex(const std::string& s);
-std::string sha256_hex(const std::uint8_t* data, std::size_t size);
-std::string sha256_file_hex(const std::string& path);  // BlobError naming the path if unreadable
 
 }  // namespace mm::store

@@ -23,6 +23,7 @@
 #include "codec/stream.h"
 #include "meshio/read_mesh.h"
 #include "store/home.h"
+#include "support/sha256.h"
 #include "store/sqlite_db.h"
 #include "store/store.h"
 
@@ -164,7 +165,7 @@ struct E2E : ::testing::Test {
       fs::path p = f["path"].get<std::string>();
       roles.insert(f["role"].get<std::string>());
       ASSERT_TRUE(fs::exists(p)) << p;
-      EXPECT_EQ(mm::store::sha256_file_hex(p.string()), f["sha256"].get<std::string>()) << p;
+      EXPECT_EQ(mm::support::sha256_file_hex(p.string()), f["sha256"].get<std::string>()) << p;
       if (f["role"] == "stream") EXPECT_NO_THROW(mm::decode_file(p.string())) << p;
       else EXPECT_NO_THROW(mm::read_mesh(p.string())) << p;
     }

@@ -7,6 +7,7 @@
 #include <random>
 
 #include "store/blob_store.h"
+#include "support/sha256.h"
 #include "store_test_util.h"
 
 using namespace mm;
@@ -56,12 +57,12 @@ TEST(BlobStore, PutFileStreamsLargeFilesAndLeavesNoTempFiles) {
   std::string src = dir / "big.bin";
   std::ofstream(src, std::ios::binary).write(data.data(), static_cast<std::streamsize>(data.size()));
   std::string h = b.put_file(src);
-  EXPECT_EQ(h, store::sha256_file_hex(src));
-  EXPECT_EQ(h, store::sha256_hex(reinterpret_cast<const std::uint8_t*>(data.data()), data.size()));
+  EXPECT_EQ(h, support::sha256_file_hex(src));
+  EXPECT_EQ(h, support::sha256_hex(reinterpret_cast<const std::uint8_t*>(data.data()), data.size()));
   EXPECT_EQ(b.put_file(src), h);
   EXPECT_EQ(temp_files(b.root()), 0u) << "the duplicate put must remove its temporary copy";
   for (auto& f : blob_files(b.root()))
-    EXPECT_EQ(fs::path(f).filename().string(), store::sha256_file_hex(f)) << f;
+    EXPECT_EQ(fs::path(f).filename().string(), support::sha256_file_hex(f)) << f;
   EXPECT_THROW(b.put_file(dir / "does-not-exist"), store::BlobError);
   EXPECT_EQ(temp_files(b.root()), 0u);
 }

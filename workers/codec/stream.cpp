@@ -1,7 +1,5 @@
 #include "codec/stream.h"
 
-#include <fcntl.h>
-#include <unistd.h>
 #include <zlib.h>
 #include <zstd.h>
 
@@ -11,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <system_error>
 
 #include "codec/bytes.h"
 #include "codec/connectivity.h"
@@ -18,6 +17,7 @@
 #include "codec/rice.h"
 #include "codec/stream_detail.h"
 #include "codec/stream_v3.h"
+#include "support/atomic_file.h"
 
 namespace mm {
 namespace {
@@ -450,36 +450,10 @@ DecodedStream decode(const std::uint8_t* data, std::size_t size, const std::stri
 // Files
 
 void write_stream_file(const std::string& path, const std::vector<std::uint8_t>& bytes) {
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw InputError(path, "cannot create temporary file: " + std::string(std::strerror(errno)));
-  std::size_t done = 0;
-  bool ok = true;
-  while (ok && done < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    ok = n > 0;
-    if (ok) done += static_cast<std::size_t>(n);
-  }
-  ok = ok && ::fsync(fd) == 0;
-  ok = (::close(fd) == 0) && ok;
-  if (!ok) {
-    ::unlink(tmp.c_str());
-    throw InputError(path, "writing the stream failed");
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string why = std::strerror(errno);
-    ::unlink(tmp.c_str());
-    throw InputError(path, "cannot rename the stream into place: " + why);
-  }
-  // Make the rename durable too.
-  const std::string dir = std::filesystem::path(path).parent_path().empty()
-                              ? std::string(".")
-                              : std::filesystem::path(path).parent_path().string();
-  const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dfd >= 0) {
-    ::fsync(dfd);
-    ::close(dfd);
+  try {
+    support::write_file_atomic(path, bytes);
+  } catch (const std::system_error& e) {
+    throw InputError(path, std::string("writing the stream failed: ") + e.what());
   }
 }
 

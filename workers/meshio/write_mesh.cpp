@@ -1,9 +1,5 @@
 // Writers. Text formats print doubles with std::to_chars (shortest form that reads back to the
 // identical double, independent of the C locale), so write/read round trips are exact.
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
@@ -11,10 +7,12 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <system_error>
 
 #include <Eigen/Geometry>
 
 #include "meshio/read_mesh.h"
+#include "support/atomic_file.h"
 
 namespace mm {
 namespace {
@@ -134,48 +132,12 @@ std::string stl_bytes(const Mesh& m, const std::string& path) {
   return s;
 }
 
-// Temp file next to the target, fsync, rename: readers never see a half-written mesh.
+// Readers never see a half-written mesh (support/atomic_file.h).
 void atomic_write(const std::string& path, const std::string& bytes) {
-  namespace fs = std::filesystem;
-  fs::path target(path);
-  fs::path dir = target.parent_path().empty() ? fs::path(".") : target.parent_path();
-  std::string tmpl = (dir / ("." + target.filename().string() + ".tmp.XXXXXX")).string();
-  std::vector<char> name(tmpl.begin(), tmpl.end());
-  name.push_back('\0');
-  int fd = ::mkstemp(name.data());
-  if (fd < 0) throw InputError(path, std::string("cannot create temporary file: ") + std::strerror(errno));
-  auto fail = [&](const char* what) {
-    int err = errno;
-    ::close(fd);
-    ::unlink(name.data());
-    throw InputError(path, std::string(what) + ": " + std::strerror(err));
-  };
-  size_t done = 0;
-  while (done < bytes.size()) {
-    ssize_t w = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (w < 0) {
-      if (errno == EINTR) continue;
-      fail("write failed");
-    }
-    done += static_cast<size_t>(w);
-  }
-  if (::fchmod(fd, 0644) != 0) fail("chmod failed");
-  if (::fsync(fd) != 0) fail("fsync failed");
-  if (::close(fd) != 0) {
-    int err = errno;
-    ::unlink(name.data());
-    throw InputError(path, std::string("close failed: ") + std::strerror(err));
-  }
-  if (::rename(name.data(), path.c_str()) != 0) {
-    int err = errno;
-    ::unlink(name.data());
-    throw InputError(path, std::string("rename failed: ") + std::strerror(err));
-  }
-  // Make the rename itself durable; a failure here cannot un-write the file, so it is ignored.
-  int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
-  if (dfd >= 0) {
-    ::fsync(dfd);
-    ::close(dfd);
+  try {
+    support::write_file_atomic(path, bytes);
+  } catch (const std::system_error& e) {
+    throw InputError(path, e.what());
   }
 }
 

@@ -1,7 +1,6 @@
 #include "render/image.h"
 
 #include <png.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -10,6 +9,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <stdexcept>
+#include <system_error>
+
+#include "support/atomic_file.h"
 
 namespace mm {
 namespace {
@@ -249,20 +251,10 @@ void Image::write_png(const std::string& path) const {
     throw std::runtime_error(path + ": PNG encoding failed: " + image.message);
   png_image_free(&image);
 
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) throw std::runtime_error(path + ": cannot create temporary file " + tmp);
-  const bool ok = std::fwrite(buffer.data(), 1, size, f) == size && std::fflush(f) == 0 &&
-                  ::fsync(::fileno(f)) == 0;
-  if (std::fclose(f) != 0 || !ok) {
-    std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": writing the PNG failed");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": cannot rename PNG into place: " + ec.message());
+  try {
+    support::write_file_atomic(path, buffer);
+  } catch (const std::system_error& e) {
+    throw std::runtime_error(path + ": writing the PNG failed: " + e.what());
   }
 }
 
