@@ -22,7 +22,7 @@
 #include "codec/stream.h"
 #include "fitting/compress.h"
 #include "meshio/read_mesh.h"
-#include "quality/smallest_stream.h"
+#include "compression/smallest_stream.h"
 #include "quality/surface_distance.h"
 #include "render/render_mesh.h"
 #include "subdivision/decompress.h"

@@ -591,7 +591,7 @@ TEST(CliCompress, SnappingMeetsTheToleranceByCompareAndNeverGrows) {
 }
 
 // Where a polyhedron misses the tolerance on a grid with its nearest values, grid values chosen
-// for its surface (quality/grid_descent.h) may meet it: abc9 at seed 3 is written at 7 bits
+// for its surface (compression/grid_descent.h) may meet it: abc9 at seed 3 is written at 7 bits
 // that way (with nearest values only, 9 bits and 144 bytes), within the tolerance by `compare`;
 // `--no-snap` keeps the nearest values.
 TEST(CliCompress, GridDescentMeetsTheToleranceOnACoarserGrid) {

@@ -5,7 +5,7 @@
 #include "codec/quantize.h"
 #include "codec/stream.h"
 #include "fitting/compress.h"
-#include "quality/grid_descent.h"
+#include "compression/grid_descent.h"
 #include "samples/samples.h"
 #include "subdivision/subdivide.h"
 

@@ -4,7 +4,7 @@
 
 #include "codec/stream.h"
 #include "fitting/compress.h"
-#include "quality/smallest_stream.h"
+#include "compression/smallest_stream.h"
 #include "samples/samples.h"
 
 namespace {

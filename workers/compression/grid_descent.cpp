@@ -1,4 +1,4 @@
-#include "quality/grid_descent.h"
+#include "compression/grid_descent.h"
 
 #include <Eigen/Sparse>
 

@@ -1,6 +1,6 @@
 // The stream a compress run writes: among the control polyhedra that met the tolerance, each at
 // the fewest quantisation bits whose decoded surface still meets it (with its nearest grid
-// values, or with grid values chosen for the surface: quality/grid_descent.h), the smallest; then
+// values, or with grid values chosen for the surface: compression/grid_descent.h), the smallest; then
 // the chosen polyhedron is numbered from the start vertex that codes smallest, and
 // rate-distortion snapping (CodecParams::snap_cells) spends the tolerance the chosen surface
 // leaves unused on bytes. Every candidate stream is decoded, subdivided and checked against the
@@ -46,7 +46,7 @@ struct ChosenStream {
   // vertex than the polyhedron does (in_traversal_order, codec/stream.h): the same surface.
   int polyhedron = 0;
   bool snapped = false;
-  // The grid values were chosen for the surface (descended_on_grid, quality/grid_descent.h):
+  // The grid values were chosen for the surface (descended_on_grid, compression/grid_descent.h):
   // the polyhedron missed the tolerance at these bits with its nearest grid values.
   bool descended = false;
   std::size_t unsnapped_bytes = 0;  // the chosen polyhedron's plain stream (cheapest numbering)

@@ -1,4 +1,4 @@
-#include "quality/smallest_stream.h"
+#include "compression/smallest_stream.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,15 +7,15 @@
 #include <optional>
 
 #include "codec/stream.h"
-#include "quality/coordinate_slack.h"
-#include "quality/grid_descent.h"
+#include "compression/coordinate_slack.h"
+#include "compression/grid_descent.h"
 
 namespace mm {
 namespace {
 
 // Rate-distortion snapping (CodecParams::snap_cells) at one grid: spends the tolerance the
 // decoded surface leaves unused on bytes. Allowances come from the plain stream's per-coordinate
-// slack (quality/coordinate_slack.h) times a scale (kSnapScales): the slack is a first-order bound that
+// slack (compression/coordinate_slack.h) times a scale (kSnapScales): the slack is a first-order bound that
 // assumes every neighbour moves the worst way at once, which the encoder's moves rarely do (at
 // scale 2 the 8-bit grids of most bench parts barely move; at 4 about half of the streams meet
 // the tolerance unrepaired). A candidate that misses the tolerance is repaired, not discarded:

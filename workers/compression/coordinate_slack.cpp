@@ -1,4 +1,4 @@
-#include "quality/coordinate_slack.h"
+#include "compression/coordinate_slack.h"
 
 #include <CGAL/Simple_cartesian.h>
 

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "quality/coordinate_slack.h"
+#include "compression/coordinate_slack.h"
 #include "quality/surface_distance.h"
 #include "subdivision/decompress.h"
 
