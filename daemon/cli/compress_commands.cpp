@@ -22,7 +22,7 @@
 #include "codec/stream.h"
 #include "fitting/compress.h"
 #include "meshio/read_mesh.h"
-#include "compression/smallest_stream.h"
+#include "compression/compress_part.h"
 #include "quality/surface_distance.h"
 #include "render/render_mesh.h"
 #include "subdivision/decompress.h"
@@ -57,21 +57,6 @@ Mesh load_surface(const std::string& path, int level) {
   return decompress_to_level(s.mesh, level >= 0 ? level : stream_levels(s, 3));
 }
 
-struct FitAtAngle {
-  double angle;
-  CompressResult result;
-  std::shared_ptr<const CompressState> rounds;  // for the coarsening (compress_rounds)
-  bool coarsened = false;
-};
-struct FitsAtAngles {
-  std::vector<FitAtAngle> fits;  // one per distinct crease network, in the order of the angles
-  std::vector<double> refused;   // angles at which compress() refused the part
-  // Every fit's candidates that met the tolerance, fewest vertices first, with their fit.
-  std::vector<std::pair<const FitAtAngle*, const Mesh*>> polyhedra;
-  double cpu_seconds = 0;  // of the fits, summed over their threads
-  int threads = 1;         // the most fits that ran at once
-};
-
 // This process's peak resident set so far (getrusage: kilobytes on Linux), in MB.
 double peak_rss_mb() {
   rusage u{};
@@ -79,116 +64,16 @@ double peak_rss_mb() {
   return static_cast<double>(u.ru_maxrss) / 1024.0;
 }
 
-double thread_cpu_seconds() {
-  timespec t{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
-}
-
-// compress() at each angle whose crease network differs from the earlier angles' (the same
-// network gives the same fit). The fits are independent and deterministic, so they run on up
-// to `threads` threads and are collected in the angles' order: the same fits, in the same order,
-// as one after another. An angle at which compress() refuses the part (more corners than the
-// budget, say) is left out while another angle fits it; when none does, the first refusal is
-// thrown. When no fit meets the tolerance, the `fallback` angles are fitted the same way, one
-// after another, until one does. `options.verify` must be safe to call from several threads.
-FitsAtAngles fit_at_angles(const Mesh& mesh, const CompressOptions& options, const std::vector<double>& angles,
-                           const std::vector<double>& fallback, const std::string& source, int threads) {
-  FitsAtAngles out;
-  out.fits.reserve(angles.size() + fallback.size());  // `polyhedra` points into it
-  std::vector<Features> networks;
-  std::optional<InputError> refusal;
-  // The angles of `list` whose networks are new, in order.
-  const auto distinct = [&](const std::vector<double>& list) {
-    std::vector<double> fresh;
-    for (const double angle : list) {
-      CompressOptions o = options;
-      o.angle_degrees = angle;
-      Features f = compress_features(mesh, o, source);
-      if (std::any_of(networks.begin(), networks.end(), [&f](const Features& g) { return same_crease_network(g, f); }))
-        continue;
-      networks.push_back(std::move(f));
-      fresh.push_back(angle);
-    }
-    return fresh;
+// ParallelFor on threads of this process: the angles' fits run at once.
+void run_on_threads(int n, int at_once, const std::function<void(int)>& task) {
+  std::atomic<int> next{0};
+  const auto work = [&] {
+    for (int k; (k = next++) < n;) task(k);
   };
-  struct Outcome {
-    std::optional<CompressResult> result;
-    std::shared_ptr<const CompressState> rounds;
-    std::exception_ptr error;
-    double cpu = 0;
-  };
-  const auto fit_all = [&](const std::vector<double>& list, int at_once) {
-    std::vector<Outcome> done(list.size());
-    std::atomic<std::size_t> next{0};
-    const auto work = [&] {
-      for (std::size_t k; (k = next++) < list.size();) {
-        const double c0 = thread_cpu_seconds();
-        CompressOptions o = options;
-        o.angle_degrees = list[k];
-        try {
-          // With coarsening, the rounds only: it is spent on one angle below.
-          done[k].result = o.coarsen ? compress_rounds(mesh, o, source, done[k].rounds) : compress(mesh, o, source);
-        } catch (...) {
-          done[k].error = std::current_exception();
-        }
-        done[k].cpu = thread_cpu_seconds() - c0;
-      }
-    };
-    const int n = std::max(1, std::min(at_once, static_cast<int>(list.size())));
-    out.threads = std::max(out.threads, n);
-    std::vector<std::thread> pool;
-    for (int t = 1; t < n; ++t) pool.emplace_back(work);
-    work();
-    for (auto& t : pool) t.join();
-    for (std::size_t k = 0; k < list.size(); ++k) {
-      out.cpu_seconds += done[k].cpu;
-      if (done[k].result) {
-        out.fits.push_back({list[k], std::move(*done[k].result), std::move(done[k].rounds)});
-        continue;
-      }
-      try {
-        std::rethrow_exception(done[k].error);
-      } catch (const InputError& e) {
-        if (!refusal) refusal = e;
-        out.refused.push_back(list[k]);
-      }
-    }
-  };
-  fit_all(distinct(angles), threads);
-  const auto met = [&out] {
-    return std::any_of(out.fits.begin(), out.fits.end(),
-                       [](const FitAtAngle& f) { return !f.result.candidates.empty(); });
-  };
-  for (const double angle : fallback) {
-    if (met()) break;
-    fit_all(distinct({angle}), 1);
-  }
-  if (out.fits.empty()) throw *refusal;
-  // The coarsening costs 3-5 times the rounds and the angles' rounds foretell its winner: over the
-  // nine bench parts and seeds 1-3, coarsening only the angle whose rounds met the tolerance with
-  // the fewest vertices lost the smallest stream of all angles' coarsenings in 2 of 27 cases, by
-  // 2-3 % (docs/compression.md), for about a third less fit time where the angles differ.
-  if (options.coarsen) {
-    FitAtAngle* pick = nullptr;
-    for (auto& fit : out.fits)
-      if (!fit.result.candidates.empty() &&
-          (!pick || fit.result.control.num_vertices() < pick->result.control.num_vertices()))
-        pick = &fit;
-    if (pick) {
-      const double c0 = thread_cpu_seconds();
-      pick->result = coarsen_rounds(*pick->rounds);
-      pick->coarsened = true;
-      out.cpu_seconds += thread_cpu_seconds() - c0;
-    }
-  }
-  for (auto& fit : out.fits) fit.rounds.reset();  // their trees and samples are no longer needed
-  for (const auto& fit : out.fits)
-    for (const auto& c : fit.result.candidates) out.polyhedra.emplace_back(&fit, &c.control);
-  std::stable_sort(out.polyhedra.begin(), out.polyhedra.end(), [](const auto& x, const auto& y) {
-    return x.second->num_vertices() < y.second->num_vertices();
-  });
-  return out;
+  std::vector<std::thread> pool;
+  for (int t = 1; t < at_once; ++t) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
 }
 
 // A JSON number, or null where it was not measured.
@@ -307,28 +192,26 @@ void add_compress_commands(CLI::App& app) {
         verify_seconds += thread_cpu_seconds() - v0;
         return meets;
       };
-      const std::vector<double> fallback = angle_option->count() > 0 ? std::vector<double>{} : a->fallback_angles;
-      const int threads = a->threads > 0 ? a->threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-      const FitsAtAngles fits = fit_at_angles(mesh, options, angles, fallback, a->in, threads);
-      const double fit_wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      PartOptions po;
+      po.fit = options;
+      po.angles = angles;
+      po.fallback_angles = angle_option->count() > 0 ? std::vector<double>{} : a->fallback_angles;
+      po.at_once = a->threads > 0 ? a->threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+      po.parallel = run_on_threads;
+      po.stream.rms_tolerance = a->rms_tolerance;
+      po.stream.bits = a->bits;
+      po.stream.snap = a->snap;
+      po.stream.quick = a->fast;
+      po.stream.metadata["levels"] = std::to_string(a->o.levels);
+      const CompressedPart part = compress_part(mesh, measured, po, a->in);
+      const PartFits& fits = part.fits;
+      const double select_seconds = part.stream_seconds;
+      const double fit_wall_seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() - select_seconds;
       const double seconds = fits.cpu_seconds;
-      const auto t1 = std::chrono::steady_clock::now();
-      StreamSearch search;
-      search.tolerance = a->o.tolerance;
-      search.rms_tolerance = a->rms_tolerance;
-      search.levels = a->o.levels;
-      search.bits = a->bits;
-      search.fit_met = !fits.polyhedra.empty();
-      search.snap = a->snap;
-      search.quick = a->fast;
-      search.metadata["levels"] = std::to_string(a->o.levels);
-      std::vector<const Mesh*> polyhedra;
-      std::vector<const FitAtAngle*> from;  // the fit each polyhedron came from
-      for (const auto& [fit, control] : fits.polyhedra) polyhedra.push_back(control), from.push_back(fit);
-      if (polyhedra.empty()) polyhedra.push_back(&fits.fits.front().result.control), from.push_back(&fits.fits.front());
-      const ChosenStream s = smallest_stream(measured, polyhedra, search, a->out);
-      const Mesh* chosen = polyhedra[static_cast<std::size_t>(s.polyhedron)];
-      const FitAtAngle& chosen_fit = *from[static_cast<std::size_t>(s.polyhedron)];
+      const ChosenStream& s = part.stream;
+      const Mesh* chosen = part.control;
+      const FitAtAngle& chosen_fit = *part.fit;
       const CompressResult& r = chosen_fit.result;
       std::vector<double> fitted;
       nlohmann::json coarsened_angle;  // null: nothing coarsened
@@ -338,7 +221,6 @@ void add_compress_commands(CLI::App& app) {
       }
       const std::vector<std::uint8_t>& bytes = s.bytes;
       const SurfaceDistance& d = s.distance;
-      const double select_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
       write_stream_file(a->out, bytes);
       // Unmeasured (--fast), the stream was checked: it met both tolerances.
       const bool hausdorff_met = s.measured ? d.hausdorff_relative() <= a->o.tolerance : s.meets;
@@ -353,7 +235,7 @@ void add_compress_commands(CLI::App& app) {
                                                [](const std::vector<int>& f) { return f.size() == 4; })},
                        {"creases", chosen->creases.size()},
                        {"corners", chosen->corners.size()},
-                       {"candidates", polyhedra.size()},
+                       {"candidates", part.candidates},
                        {"levels", r.levels},
                        {"bits", s.bits},
                        {"stream_bytes", bytes.size()},

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "meshio/read_mesh.h"
+#include "compression/compress_part.h"
 #include "quality/surface_distance.h"
 
 namespace mm::jobs {
@@ -90,37 +91,6 @@ std::string fallback_key(const std::vector<double>& angles) {
   std::string k;
   for (double a : angles) k += (k.empty() ? ";fallback=" : ",") + shortest_text(a);
   return k;
-}
-
-// compress() at the configured angle, then at each smaller fallback angle with a crease network
-// of its own until one meets the tolerance (PrepareParams::fallback_angles). A fallback angle
-// the part cannot be compressed at (more corners than the budget, a singular fit) is passed
-// over: the configured angle's result stands, and the job does not fail for a better try.
-CompressResult compress_with_fallback(const Mesh& original, const CompressOptions& options,
-                                      const std::vector<double>& fallback, const std::string& source) {
-  CompressResult best = compress(original, options, source);
-  std::vector<Features> networks;
-  for (const double angle : fallback) {
-    if (best.tolerance_met) break;
-    if (!(angle < options.angle_degrees)) continue;
-    CompressOptions o = options;
-    o.angle_degrees = angle;
-    try {
-      if (networks.empty()) networks.push_back(compress_features(original, options, source));
-      Features f = compress_features(original, o, source);
-      if (std::any_of(networks.begin(), networks.end(), [&f](const Features& g) { return same_crease_network(g, f); }))
-        continue;
-      networks.push_back(std::move(f));
-      CompressResult r = compress(original, o, source);
-      if (r.tolerance_met || r.stats.hausdorff / r.stats.diagonal < best.stats.hausdorff / best.stats.diagonal)
-        best = std::move(r);
-    } catch (const std::bad_alloc&) {
-      throw;  // may pass on a retry
-    } catch (const std::exception&) {
-      continue;
-    }
-  }
-  return best;
 }
 
 }  // namespace
@@ -250,13 +220,15 @@ PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
     // The fit measures its surface at refined vertices only and can miss a narrow peak between
     // them; the dense measurement the CLI reports decides here too, so a protected part meets
     // the configured tolerance by the same numbers `meshmark compress` and `compare` give.
-    CompressOptions options = params.compression;
     // The original's samples and tree are built once, for every round and fallback angle.
     const MeasuredSurface measured(original);
-    options.verify = [&measured, levels = options.levels, tolerance = options.tolerance](const Mesh& control) {
-      return decoded_within(measured, control, levels, tolerance);
-    };
-    a.compression = compress_with_fallback(original, options, params.fallback_angles, source);
+    PartOptions po;
+    po.fit = params.compression;
+    po.angles = {params.compression.angle_degrees};
+    // Smaller angles only: each adds creases the configured angle left smooth.
+    for (const double angle : params.fallback_angles)
+      if (angle < params.compression.angle_degrees) po.fallback_angles.push_back(angle);
+    a.compression = fit_part(original, measured, po, source).kept().result;
   } catch (const InputError&) {
     throw;
   } catch (const std::bad_alloc&) {

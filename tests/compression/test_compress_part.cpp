@@ -1,0 +1,85 @@
+// fit_part / compress_part: the one compression entry point of `meshmark compress` and protect
+// jobs. The fits do not depend on how they were run; fallback angles are fitted only while no
+// fit meets the tolerance; a protect job keeps the first fit that met it, else the closest.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+#include "compression/compress_part.h"
+#include "samples/samples.h"
+
+namespace mm {
+namespace {
+
+const Mesh& part() {
+  static const Mesh m = samples::sample_parts().at(0).mesh;
+  return m;
+}
+
+TEST(CompressPart, FitsAreTheSameWhicheverOrderTheyRunIn) {
+  const MeasuredSurface measured(part());
+  PartOptions o;
+  o.angles = {35.0, 45.0, 55.0};
+  const PartFits in_order = fit_part(part(), measured, o, "part");
+  // A runner that starts the last task first, as threads may.
+  int calls = 0;
+  o.at_once = 3;
+  o.parallel = [&calls](int n, int, const std::function<void(int)>& task) {
+    ++calls;
+    for (int k = n - 1; k >= 0; --k) task(k);
+  };
+  const PartFits reversed = fit_part(part(), measured, o, "part");
+  EXPECT_GE(calls, in_order.fits.size() > 1 ? 1 : 0);
+  ASSERT_EQ(in_order.fits.size(), reversed.fits.size());
+  for (std::size_t k = 0; k < in_order.fits.size(); ++k) {
+    EXPECT_EQ(in_order.fits[k].angle, reversed.fits[k].angle);
+    EXPECT_TRUE(in_order.fits[k].result.control.points == reversed.fits[k].result.control.points) << k;
+  }
+  ASSERT_EQ(in_order.polyhedra.size(), reversed.polyhedra.size());
+  EXPECT_TRUE(std::is_sorted(in_order.polyhedra.begin(), in_order.polyhedra.end(), [](const auto& a, const auto& b) {
+    return a.second->num_vertices() < b.second->num_vertices();
+  }));
+}
+
+TEST(CompressPart, FallbackAnglesAreFittedOnlyWhileNothingMeetsTheTolerance) {
+  const MeasuredSurface measured(part());
+  PartOptions met;
+  met.fallback_angles = {30.0, 25.0, 20.0};
+  const PartFits a = fit_part(part(), measured, met, "part");
+  ASSERT_TRUE(a.fits.front().result.tolerance_met);
+  EXPECT_EQ(a.fits.size(), 1u);
+  EXPECT_EQ(&a.kept(), &a.fits.front());
+
+  PartOptions missed = met;
+  missed.fit.max_vertices = 12;  // fewer than the part's 24 corners: every angle refuses it
+  EXPECT_THROW(fit_part(part(), measured, missed, "part"), InputError);
+  missed.fit.tolerance = 1e-5;  // out of reach of 40 control vertices
+  missed.fit.max_vertices = 40;
+  const PartFits b = fit_part(part(), measured, missed, "part");
+  EXPECT_FALSE(std::any_of(b.fits.begin(), b.fits.end(), [](const FitAtAngle& f) { return f.result.tolerance_met; }));
+  EXPECT_TRUE(b.polyhedra.empty());
+  // The block's chamfers are 45-degree folds: 30, 25 and 20 find 35's crease network, which is
+  // not fitted again.
+  EXPECT_EQ(b.fits.size(), 1u);
+  EXPECT_TRUE(b.refused.empty());
+  const FitAtAngle& kept = b.kept();
+  for (const auto& f : b.fits)
+    EXPECT_LE(kept.result.stats.hausdorff / kept.result.stats.diagonal,
+              f.result.stats.hausdorff / f.result.stats.diagonal);
+}
+
+TEST(CompressPart, TheStreamIsSearchedAmongThePolyhedraThatMetTheTolerance) {
+  const MeasuredSurface measured(part());
+  PartOptions o;
+  o.stream.quick = true;
+  const CompressedPart c = compress_part(part(), measured, o, "part");
+  ASSERT_NE(c.control, nullptr);
+  ASSERT_NE(c.fit, nullptr);
+  EXPECT_TRUE(c.stream.meets);
+  EXPECT_FALSE(c.stream.bytes.empty());
+  EXPECT_EQ(c.candidates, static_cast<int>(c.fits.polyhedra.size()));
+  EXPECT_EQ(c.control, c.fits.polyhedra.front().second);  // quick: the fewest vertices that met it
+}
+
+}  // namespace
+}  // namespace mm
