@@ -12,7 +12,6 @@ find_package(PNG REQUIRED)
 find_package(ZLIB REQUIRED)
 
 pkg_check_modules(SODIUM REQUIRED IMPORTED_TARGET libsodium)
-pkg_check_modules(ZSTD REQUIRED IMPORTED_TARGET libzstd)
 
 # OpenMesh: Debian ships headers and libs without a usable CMake config.
 find_path(OPENMESH_INCLUDE_DIR OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh REQUIRED)

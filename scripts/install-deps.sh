@@ -5,7 +5,7 @@ set -euo pipefail
 PKGS=(
   build-essential cmake pkg-config
   libeigen3-dev libopenmesh-dev libosd-dev libsqlite3-dev sqlite3
-  nlohmann-json3-dev libspdlog-dev libcli11-dev libsodium-dev libzstd-dev
+  nlohmann-json3-dev libspdlog-dev libcli11-dev libsodium-dev zlib1g-dev
   libcgal-dev libspectra-dev libgtest-dev libgmock-dev libbenchmark-dev
   libpng-dev draco python3 jq time
 )

@@ -19,25 +19,10 @@ mm::Points random_points(int n, unsigned seed, double scale, double shift) {
 
 }  // namespace
 
-TEST(Quantize, BoxGridCoversTheBoxAndErrorIsHalfAStep) {
-  for (int bits : {8, 10, 12, 16, 20, 24}) {
-    const mm::Points p = random_points(500, 7u + bits, 3.0, 100.0);
-    const mm::Quantization q = mm::box_quantization_for(p, bits);
-    const mm::GridPoints g = mm::quantize(p, q);
-    EXPECT_EQ(g.minCoeff(), 0);
-    EXPECT_EQ(g.maxCoeff(), q.max_value()) << bits;  // the longest axis spans the whole grid
-    const mm::Points back = mm::dequantize(g, q);
-    EXPECT_LE((back - p).cwiseAbs().maxCoeff(), 0.5 * q.step * (1 + 1e-6)) << bits;
-    // Longest side is 2 * 3 * 3 = 18 units (z axis).
-    EXPECT_NEAR(q.step * q.max_value(), (p.col(2).maxCoeff() - p.col(2).minCoeff()), 1e-9);
-  }
-}
-
 TEST(Quantize, CellGridCoversTheBoxAndErrorIsHalfAStep) {
   for (int bits : {8, 10, 12, 16, 20, 24}) {
     const mm::Points p = random_points(500, 7u + bits, 3.0, 100.0);
     const mm::Quantization q = mm::quantization_for(p, bits);
-    ASSERT_TRUE(q.cells);
     int e = 0;
     EXPECT_EQ(std::frexp(q.step, &e), 0.5);  // a power of two
     const mm::GridPoints g = mm::quantize(p, q);
@@ -52,22 +37,18 @@ TEST(Quantize, CellGridCoversTheBoxAndErrorIsHalfAStep) {
 }
 
 TEST(Quantize, RequantisingDequantisedPointsIsExact) {
-  for (bool cells : {true, false})
-    for (unsigned seed = 0; seed < 40; ++seed)
-      for (int bits : {10, 12, 16, 24}) {
-        const mm::Points p = random_points(50 + seed, seed, std::pow(10.0, int(seed % 9) - 4),
-                                           (seed % 5) * 123.456);
-        auto grid_for = [&](const mm::Points& x) {
-          return cells ? mm::quantization_for(x, bits) : mm::box_quantization_for(x, bits);
-        };
-        const mm::Quantization q = grid_for(p);
-        const mm::GridPoints g = mm::quantize(p, q);
-        const mm::Points back = mm::dequantize(g, q);
-        const mm::Quantization q2 = grid_for(back);
-        ASSERT_EQ(q2.step, q.step) << seed << " " << bits;
-        ASSERT_EQ(q2.offset, q.offset);
-        ASSERT_EQ(mm::quantize(back, q2), g);
-      }
+  for (unsigned seed = 0; seed < 40; ++seed)
+    for (int bits : {10, 12, 16, 24}) {
+      const mm::Points p = random_points(50 + seed, seed, std::pow(10.0, int(seed % 9) - 4),
+                                         (seed % 5) * 123.456);
+      const mm::Quantization q = mm::quantization_for(p, bits);
+      const mm::GridPoints g = mm::quantize(p, q);
+      const mm::Points back = mm::dequantize(g, q);
+      const mm::Quantization q2 = mm::quantization_for(back, bits);
+      ASSERT_EQ(q2.step, q.step) << seed << " " << bits;
+      ASSERT_EQ(q2.offset, q.offset);
+      ASSERT_EQ(mm::quantize(back, q2), g);
+    }
 }
 
 TEST(Quantize, CellGridIsAFixedPointOnAwkwardBoxes) {
@@ -105,9 +86,8 @@ TEST(Quantize, DegenerateInputs) {
   one << 1.5, -2, 3;
   const mm::Quantization q = mm::quantization_for(one, 12);
   EXPECT_GT(q.step, 0);
-  // A single point: the box grid keeps it exactly, the cell grid moves it to the centre of a
-  // cell of 2^-48 (the smallest whose cell numbers, up to 3 / 2^-48, stay within 2^50).
-  EXPECT_EQ(mm::dequantize(mm::quantize(one, mm::box_quantization_for(one, 12)), mm::box_quantization_for(one, 12)), one);
+  // A single point moves to the centre of a cell of 2^-48 (the smallest whose cell numbers, up
+  // to 3 / 2^-48, stay within 2^50).
   EXPECT_EQ(q.step, std::ldexp(1.0, -48));
   EXPECT_LE((mm::quantized_positions(one, 12) - one).cwiseAbs().maxCoeff(), 0.5 * q.step);
   EXPECT_EQ(mm::quantized_positions(mm::Points(0, 3), 12).rows(), 0);

@@ -33,18 +33,17 @@ std::vector<std::vector<int>> canonical(std::vector<std::vector<int>> faces) {
 }
 
 // Round trip: quantised values bit-exact, topology identical, re-encoding byte-identical.
-void expect_round_trip(const mm::Mesh& m, int bits, const std::string& name, int version = 3) {
-  SCOPED_TRACE(name + " at " + std::to_string(bits) + " bits, version " + std::to_string(version));
+void expect_round_trip(const mm::Mesh& m, int bits, const std::string& name) {
+  SCOPED_TRACE(name + " at " + std::to_string(bits) + " bits");
   mm::CodecParams params;
   params.quant_bits = bits;
-  params.format_version = version;
   params.metadata = {{"asset", "A-17"}, {"copy", "c0042"}};
   if (bits % 2 == 0) params.metadata["levels"] = "3";  // version 3 keeps it in the header
   const auto bytes = mm::encode(m, params);
   const mm::DecodedStream d = mm::decode(bytes, name);
-  EXPECT_EQ(d.version, version == 3 && bits < 8 ? 4 : version);  // version 4: 6 and 7 bits
+  EXPECT_EQ(d.version, bits < 8 ? 4 : 3);  // version 4: 6 and 7 bits
 
-  const mm::Quantization q = version >= 3 ? mm::quantization_for(m.points, bits) : mm::box_quantization_for(m.points, bits);
+  const mm::Quantization q = mm::quantization_for(m.points, bits);
   EXPECT_EQ(d.quantization.bits, bits);
   EXPECT_EQ(d.quantization.step, q.step);
   EXPECT_EQ(d.quantization.offset, q.offset);
@@ -64,13 +63,11 @@ void expect_round_trip(const mm::Mesh& m, int bits, const std::string& name, int
 }  // namespace
 
 TEST(Stream, RoundTripSynthetic) {
-  for (int version : {3, 2})
-    for (int bits : {6, 7, 8, 10, 12, 16, 20, 24}) {
-      if (version == 2 && bits < 8) continue;  // version 2 holds 8 bits and more
-      expect_round_trip(mm::test::crease_cube(), bits, "cube", version);
-      expect_round_trip(mm::test::wavy_grid(17, 11, 3), bits, "grid", version);
-      expect_round_trip(mm::test::wavy_grid(60, 45, 9), bits, "big grid", version);
-    }
+  for (int bits : {6, 7, 8, 10, 12, 16, 20, 24}) {
+    expect_round_trip(mm::test::crease_cube(), bits, "cube");
+    expect_round_trip(mm::test::wavy_grid(17, 11, 3), bits, "grid");
+    expect_round_trip(mm::test::wavy_grid(60, 45, 9), bits, "big grid");
+  }
 }
 
 TEST(Stream, RoundTripCopiesQuadsAndComponents) {
@@ -140,7 +137,6 @@ TEST(Stream, RoundTripSharedMeshes) {
     for (size_t e = 0; e < edges.size(); e += 7) m.creases.push_back(edges[e]);
     m.corners = {0, m.num_vertices() / 2, m.num_vertices() - 1};
     for (int bits : {10, 12, 16, 24}) expect_round_trip(m, bits, name);
-    expect_round_trip(m, 12, name, 2);
   }
 }
 
@@ -211,9 +207,6 @@ TEST(Stream, EmptyAndSingleVertexMeshes) {
   const auto d1 = mm::decode(mm::encode(one), "one");
   EXPECT_TRUE(d1.mesh.points == mm::quantized_positions(one.points, 12));
   EXPECT_LE((d1.mesh.points - one.points).cwiseAbs().maxCoeff(), std::ldexp(1.0, -40));
-  mm::CodecParams v2;
-  v2.format_version = 2;  // the bounding-box grid keeps a single point exactly
-  EXPECT_TRUE(mm::decode(mm::encode(one, v2), "one").mesh.points == one.points);
 }
 
 TEST(Stream, EncoderRejectsWhatTheFormatCannotHold) {
@@ -250,18 +243,12 @@ TEST(Stream, EncoderRejectsWhatTheFormatCannotHold) {
   expect_reject(good, "quantisation bits", p);
   p.quant_bits = 5;
   expect_reject(good, "quantisation bits 5 outside [6, 24]", p);
-  p.quant_bits = 7;
-  p.format_version = 2;
-  expect_reject(good, "quantisation bits 7 outside [8, 24] for format version 2", p);
   p = {};
   p.metadata["bad key"] = "x";
   expect_reject(good, "metadata key", p);
   p = {};
   p.metadata["k"] = std::string(2000, 'v');
   expect_reject(good, "too long", p);
-  p = {};
-  p.format_version = 1;
-  expect_reject(good, "format version 1 cannot be written", p);
 }
 
 TEST(Stream, FilesAreWrittenAtomicallyAndReadBack) {
@@ -295,12 +282,9 @@ TEST(Stream, SizesAreReported) {
     mm::CodecParams p;
     p.quant_bits = bits;
     const size_t size = mm::encode(m, p).size();
-    p.format_version = 2;
-    const size_t size2 = mm::encode(m, p).size();
     std::cout << "fandisk_quads.off (" << m.num_vertices() << " vertices, " << m.num_faces()
-              << " faces) at " << bits << " bits: " << size << " bytes (version 2: " << size2 << ")\n";
-    // Far below the 3 x 4-byte float + 4 x 4-byte index raw size, and below version 2.
+              << " faces) at " << bits << " bits: " << size << " bytes\n";
+    // Far below the 3 x 4-byte float + 4 x 4-byte index raw size.
     EXPECT_LT(size, m.num_vertices() * 12u + m.num_faces() * 16u);
-    EXPECT_LT(size, size2);
   }
 }

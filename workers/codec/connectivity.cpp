@@ -79,11 +79,11 @@ std::vector<int> two_ring(const Neighbours& nb, int anchor, int other) {
 // Hints look at the last kHintScan entries of each list only, so a decision costs O(1) however
 // large a (hostile) vertex's degree. A hint found there has a rank below 2 + 2 kHintScan + 1,
 // and an entry deeper than kHintScan in the other list would rank higher, so searching the last
-// kHintScan entries of both lists gives the vertex's version 2 rank exactly.
+// kHintScan entries of both lists gives the vertex's rank exactly.
 constexpr std::size_t kHintScan = 64;
 
 // Rank of a vertex v found among the last kHintScan entries of a gate vertex's list, under the
-// version 2 rules (the smaller of its ranks in the two lists).
+// rank rules (the smaller of its ranks in the two lists).
 std::uint64_t rank_of(const Neighbours& nb, int v, int anchor, int other) {
   auto position = [&](const std::vector<int>& list) -> std::int64_t {
     for (std::size_t k = 0; k < list.size() && k < kHintScan; ++k)
@@ -134,8 +134,7 @@ RankContext rank_context(const Neighbours& nb, int anchor, int other, int second
 }  // namespace
 
 void encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
-                  std::vector<std::vector<int>>* traversal_order, int version, FaceSink& sink) {
-  const bool relative_indices = version >= 2;
+                  std::vector<std::vector<int>>* traversal_order, FaceSink& sink) {
   std::vector<std::vector<int>> canon = faces;
   for (auto& f : canon) std::rotate(f.begin(), std::min_element(f.begin(), f.end()), f.end());
   std::sort(canon.begin(), canon.end());
@@ -156,63 +155,46 @@ void encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
   std::vector<char> seen(static_cast<std::size_t>(num_vertices), 0);
   std::int64_t fresh = 0;
   auto plain = [&](int v) {
-    if (relative_indices) {
-      sink.index(zigzag(static_cast<std::int64_t>(v) - fresh));
-      if (!seen[v]) seen[v] = 1, ++fresh;
-    } else {
-      sink.index(static_cast<std::uint64_t>(v));
-    }
+    sink.index(zigzag(static_cast<std::int64_t>(v) - fresh));
+    if (!seen[v]) seen[v] = 1, ++fresh;
   };
   auto note = [&](int v) {
-    if (relative_indices && !seen[v]) seen[v] = 1, ++fresh;
+    if (!seen[v]) seen[v] = 1, ++fresh;
   };
   auto code_vertex = [&](int v, int anchor, int other, int second, bool triangle) {
     const auto& list = nb.of(anchor);
-    const RankContext ctx = version >= 3 ? rank_context(nb, anchor, other, second, triangle, fresh, num_vertices)
-                                         : RankContext{};
-    if (relative_indices) {
-      // 0: the next unseen number; 1: escape to the index stream; 2 + 2k: the anchor's k-th
-      // most recent neighbour; 3 + 2k: the other gate vertex's (a face closing a fan on either
-      // side mostly meets the last one known).
-      if (v == fresh && !seen[v]) {
-        sink.rank(0, ctx);
-        note(v);
-        return;
-      }
-      const auto& list2 = nb.of(other);
-      const auto it = std::find(list.rbegin(), list.rend(), v);
-      const auto it2 = std::find(list2.rbegin(), list2.rend(), v);
-      std::uint64_t r = 0;
-      if (it != list.rend()) r = 2 + 2 * static_cast<std::uint64_t>(it - list.rbegin());
-      if (it2 != list2.rend()) {
-        const std::uint64_t r2 = 3 + 2 * static_cast<std::uint64_t>(it2 - list2.rbegin());
-        if (r == 0 || r2 < r) r = r2;
-      }
-      if (r > 0) {
-        sink.rank(r, ctx);
-        note(v);
-      } else if (version >= 3) {
-        // Escape: position in the two-ring, else past it the index relative to `fresh`.
-        sink.rank(1, ctx);
-        const auto ring = two_ring(nb, anchor, other);
-        const auto at = std::find(ring.begin(), ring.end(), v);
-        sink.escape(at != ring.end() ? static_cast<std::uint64_t>(at - ring.begin())
-                                     : ring.size() + zigzag(static_cast<std::int64_t>(v) - fresh));
-        note(v);
-      } else {
-        sink.rank(1, ctx);
-        plain(v);
-      }
+    const RankContext ctx = sink.wants_contexts()
+                                ? rank_context(nb, anchor, other, second, triangle, fresh, num_vertices)
+                                : RankContext{};
+    // 0: the next unseen number; 1: escape; 2 + 2k: the anchor's k-th most recent neighbour;
+    // 3 + 2k: the other gate vertex's (a face closing a fan on either side mostly meets the
+    // last one known).
+    if (v == fresh && !seen[v]) {
+      sink.rank(0, ctx);
+      note(v);
       return;
     }
-    const auto it = std::find(list.begin(), list.end(), v);
-    if (it != list.end()) {
-      sink.rank(static_cast<std::uint64_t>(it - list.begin()) + 1, ctx);
-      note(v);
-    } else {
-      sink.rank(0, ctx);
-      plain(v);
+    const auto& list2 = nb.of(other);
+    const auto it = std::find(list.rbegin(), list.rend(), v);
+    const auto it2 = std::find(list2.rbegin(), list2.rend(), v);
+    std::uint64_t r = 0;
+    if (it != list.rend()) r = 2 + 2 * static_cast<std::uint64_t>(it - list.rbegin());
+    if (it2 != list2.rend()) {
+      const std::uint64_t r2 = 3 + 2 * static_cast<std::uint64_t>(it2 - list2.rbegin());
+      if (r == 0 || r2 < r) r = r2;
     }
+    if (r > 0) {
+      sink.rank(r, ctx);
+      note(v);
+      return;
+    }
+    // Escape: position in the two-ring, else past it the index relative to `fresh`.
+    sink.rank(1, ctx);
+    const auto ring = two_ring(nb, anchor, other);
+    const auto at = std::find(ring.begin(), ring.end(), v);
+    sink.escape(at != ring.end() ? static_cast<std::uint64_t>(at - ring.begin())
+                                 : ring.size() + zigzag(static_cast<std::int64_t>(v) - fresh));
+    note(v);
   };
   int previous = 1;
   while (done < canon.size()) {
@@ -231,8 +213,8 @@ void encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
     const QueuedGate g = gates.front();
     const int a = g.a, b = g.b;
     gates.pop_front();
-    // Version 2: a gate whose far side is already held by a placed face costs nothing.
-    if (relative_indices && nb.placed(b, a)) continue;
+    // A gate whose far side is already held by a placed face costs nothing.
+    if (nb.placed(b, a)) continue;
     std::size_t across = canon.size();
     for (auto h = std::lower_bound(holder.begin(), holder.end(), std::make_pair(Gate{b, a}, std::size_t{0}));
          h != holder.end() && h->first == Gate{b, a}; ++h)
@@ -261,17 +243,15 @@ void encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
 }
 
 std::vector<std::vector<int>> decode_faces(FaceSource& source, std::uint32_t num_faces,
-                                           int num_vertices, int version) {
-  const bool relative_indices = version >= 2;
+                                           int num_vertices) {
   const std::uint64_t max_index = num_vertices > 0 ? static_cast<std::uint64_t>(num_vertices) - 1 : 0;
   std::vector<char> seen(static_cast<std::size_t>(num_vertices), 0);
   std::int64_t fresh = 0;
   auto note = [&](int v) {
-    if (relative_indices && !seen[v]) seen[v] = 1, ++fresh;
+    if (!seen[v]) seen[v] = 1, ++fresh;
   };
   auto plain = [&]() {
     if (num_vertices == 0) source.fail("a face refers to a vertex but the mesh has none");
-    if (!relative_indices) return static_cast<int>(source.index(max_index));
     const std::int64_t v = fresh + unzigzag(source.index(2 * max_index + 1));
     if (v < 0 || v > static_cast<std::int64_t>(max_index))
       source.fail("vertex index " + std::to_string(v) + " outside [0, " + std::to_string(max_index) + "]");
@@ -281,49 +261,39 @@ std::vector<std::vector<int>> decode_faces(FaceSource& source, std::uint32_t num
   Neighbours nb(num_vertices);
   auto coded_vertex = [&](int anchor, int other, int second, bool triangle) {
     const auto& list = nb.of(anchor);
-    RankContext ctx = version >= 3 ? rank_context(nb, anchor, other, second, triangle, fresh, num_vertices)
-                                   : RankContext{};
+    RankContext ctx = rank_context(nb, anchor, other, second, triangle, fresh, num_vertices);
     ctx.fresh_possible = fresh < num_vertices;
     const std::uint64_t r = source.rank(ctx);
-    if (relative_indices) {
-      if (r == 0) {
-        if (fresh >= num_vertices) source.fail("a new vertex but all " + std::to_string(num_vertices) + " are used");
-        const int v = static_cast<int>(fresh);
-        note(v);
-        return v;
-      }
-      if (r == 1 && version >= 3) {
-        if (num_vertices == 0) source.fail("a face refers to a vertex but the mesh has none");
-        const auto ring = two_ring(nb, anchor, other);
-        const std::uint64_t code = source.escape(ring.size() + 2 * max_index + 1);
-        std::int64_t v;
-        if (code < ring.size()) {
-          v = ring[code];
-        } else {
-          v = fresh + unzigzag(code - ring.size());
-          if (v < 0 || v > static_cast<std::int64_t>(max_index))
-            source.fail("vertex index " + std::to_string(v) + " outside [0, " + std::to_string(max_index) + "]");
-        }
-        note(static_cast<int>(v));
-        return static_cast<int>(v);
-      }
-      if (r == 1) return plain();
-      const auto& from = r % 2 == 0 ? list : nb.of(other);
-      const std::uint64_t k = (r - 2) / 2;
-      if (k >= from.size())
-        source.fail("neighbour rank " + std::to_string(r) + " but vertex " +
-                    std::to_string(r % 2 == 0 ? anchor : other) + " has " + std::to_string(from.size()) +
-                    " known neighbours");
-      const int v = from[from.size() - 1 - k];
+    if (r == 0) {
+      if (fresh >= num_vertices) source.fail("a new vertex but all " + std::to_string(num_vertices) + " are used");
+      const int v = static_cast<int>(fresh);
       note(v);
       return v;
     }
-    if (r == 0) return plain();
-    if (r > list.size())
-      source.fail("neighbour rank " + std::to_string(r) + " but vertex " + std::to_string(anchor) +
-                  " has " + std::to_string(list.size()) + " known neighbours");
-    note(list[r - 1]);
-    return list[r - 1];
+    if (r == 1) {
+      if (num_vertices == 0) source.fail("a face refers to a vertex but the mesh has none");
+      const auto ring = two_ring(nb, anchor, other);
+      const std::uint64_t code = source.escape(ring.size() + 2 * max_index + 1);
+      std::int64_t v;
+      if (code < ring.size()) {
+        v = ring[code];
+      } else {
+        v = fresh + unzigzag(code - ring.size());
+        if (v < 0 || v > static_cast<std::int64_t>(max_index))
+          source.fail("vertex index " + std::to_string(v) + " outside [0, " + std::to_string(max_index) + "]");
+      }
+      note(static_cast<int>(v));
+      return static_cast<int>(v);
+    }
+    const auto& from = r % 2 == 0 ? list : nb.of(other);
+    const std::uint64_t k = (r - 2) / 2;
+    if (k >= from.size())
+      source.fail("neighbour rank " + std::to_string(r) + " but vertex " +
+                  std::to_string(r % 2 == 0 ? anchor : other) + " has " + std::to_string(from.size()) +
+                  " known neighbours");
+    const int v = from[from.size() - 1 - k];
+    note(v);
+    return v;
   };
   auto check_distinct = [&](const std::vector<int>& f, std::size_t index) {
     for (std::size_t i = 0; i < f.size(); ++i)
@@ -351,7 +321,7 @@ std::vector<std::vector<int>> decode_faces(FaceSource& source, std::uint32_t num
     const QueuedGate g = gates.front();
     const int a = g.a, b = g.b;
     gates.pop_front();
-    if (relative_indices && nb.placed(b, a)) continue;
+    if (nb.placed(b, a)) continue;
     const int s = source.symbol(GateContext{g.from_size, previous});
     if (s < 0 || s > 2) source.fail("gate symbol " + std::to_string(s) + " is not 0, 1 or 2");
     previous = s;
@@ -364,63 +334,6 @@ std::vector<std::vector<int>> decode_faces(FaceSource& source, std::uint32_t num
     push_gates(gates, f, 1);
     faces.push_back(std::move(f));
   }
-  return faces;
-}
-
-namespace {
-
-class ByteSink : public FaceSink {
- public:
-  Writer symbols, ranks, vertices;
-  void start(int size) override { symbols.u8(static_cast<std::uint8_t>(size)); }
-  void index(std::uint64_t code) override { vertices.varint(code); }
-  void symbol(int s, const GateContext&) override { symbols.u8(static_cast<std::uint8_t>(s)); }
-  void rank(std::uint64_t r, const RankContext&) override { ranks.varint(r); }
-  void escape(std::uint64_t) override { throw std::logic_error("escape codes are version 3 only"); }
-};
-
-class ByteSource : public FaceSource {
- public:
-  ByteSource(Reader& symbols, Reader& ranks, Reader& vertices)
-      : symbols_(symbols), ranks_(ranks), vertices_(vertices) {}
-  int start() override { return symbols_.u8("component start"); }
-  std::uint64_t index(std::uint64_t max) override {
-    return vertices_.varint(relative ? "vertex index offset" : "vertex index", max);
-  }
-  int symbol(const GateContext&) override { return symbols_.u8("gate symbol"); }
-  std::uint64_t rank(const RankContext&) override { return ranks_.varint("neighbour rank", 0xFFFFFFFFull); }
-  std::uint64_t escape(std::uint64_t) override { symbols_.fail("escape codes are version 3 only"); }
-  [[noreturn]] void fail(const std::string& reason) override { symbols_.fail(reason); }
-  bool relative = false;
-
- private:
-  Reader& symbols_;
-  Reader& ranks_;
-  Reader& vertices_;
-};
-
-}  // namespace
-
-ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
-                                 std::vector<std::vector<int>>* traversal_order, int version) {
-  ByteSink sink;
-  encode_faces(faces, num_vertices, traversal_order, version, sink);
-  return {std::move(sink.symbols.bytes), std::move(sink.ranks.bytes), std::move(sink.vertices.bytes)};
-}
-
-std::vector<std::vector<int>> decode_faces(const std::uint8_t* symbols_data, std::size_t symbols_size,
-                                           const std::uint8_t* ranks_data, std::size_t ranks_size,
-                                           const std::uint8_t* vertices_data, std::size_t vertices_size,
-                                           std::uint32_t num_faces, int num_vertices,
-                                           int version, const std::string& source) {
-  Reader symbols(symbols_data, symbols_size, source, "face symbols");
-  Reader ranks(ranks_data, ranks_size, source, "face vertex ranks");
-  Reader vertices(vertices_data, vertices_size, source, "face vertex indices");
-  ByteSource src(symbols, ranks, vertices);
-  src.relative = version >= 2;
-  auto faces = decode_faces(src, num_faces, num_vertices, version);
-  if (symbols.remaining() || ranks.remaining() || vertices.remaining())
-    symbols.fail("unexpected trailing bytes in the face streams");
   return faces;
 }
 

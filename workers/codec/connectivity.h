@@ -13,18 +13,14 @@
 //   y relative to b: rank k >= 1 picks the k-th neighbour of that vertex in the order edges
 //   became known, 0 escapes to a plain index. The new face's edges after (b, a) become gates.
 //
-// Format version 2 changes three things. A popped gate (a, b) whose directed edge (b, a) is
-// already held by a placed face has no symbol (in an oriented manifold nothing new lies across
-// it, and both sides know it). A coded vertex's rank r means: 0 the next unseen number
-// (`fresh`, the count of distinct vertices referenced so far); 1 escape to the index stream;
-// 2 + 2k the anchor's k-th most recent neighbour, 3 + 2k the other gate vertex's. And plain
-// indices are zigzag(index - fresh). A mesh numbered in order of first appearance in this
-// traversal (mm::traversal_vertex_order) then codes each new vertex as rank 0 and closes fans
-// with ranks 2 or 3. Version 1: ranks r >= 1 index the anchor's list oldest first, 0 escapes,
-// plain indices are stored as they are.
-//
-// Format version 3 makes the same decisions, coded by the range coder with context models
-// (codec/stream_v3.h) instead of bytes.
+// A popped gate (a, b) whose directed edge (b, a) is already held by a placed face has no
+// symbol (in an oriented manifold nothing new lies across it, and both sides know it). A coded
+// vertex's rank r means: 0 the next unseen number (`fresh`, the count of distinct vertices
+// referenced so far); 1 escape (FaceSink::escape); 2 + 2k the anchor's k-th most recent
+// neighbour, 3 + 2k the other gate vertex's. Plain indices are zigzag(index - fresh). A mesh
+// numbered in order of first appearance in this traversal (mm::traversal_vertex_order) then
+// codes each new vertex as rank 0 and closes fans with ranks 2 or 3. The range coder codes the
+// decisions with context models (codec/stream_v3.h).
 //
 // Decoded faces come out in traversal order with that rotation; encoding them again gives the
 // same bytes. Vertices that no face uses are fine (they just never appear here).
@@ -35,8 +31,7 @@
 
 namespace mm::codec_detail {
 
-// What the traversal knows when it codes a decision. Version 3 models the decisions with
-// these as contexts; versions 1 and 2 store them as bytes and ignore them.
+// What the traversal knows when it codes a decision: the range coder's contexts.
 struct GateContext {
   int from_size = 3;     // size of the face whose edge the gate is
   int previous = 1;      // the previous gate symbol (1 before the first)
@@ -63,9 +58,11 @@ class FaceSink {
   virtual void index(std::uint64_t code) = 0;                     // plain index (as stored)
   virtual void symbol(int s, const GateContext& ctx) = 0;         // 0, 1 or 2
   virtual void rank(std::uint64_t r, const RankContext& ctx) = 0;
-  // Version 3, after rank 1: k < ring size picks entry k of the vertices two edges from the gate;
+  // After rank 1: k < ring size picks entry k of the vertices two edges from the gate;
   // ring size + zigzag(index - fresh) otherwise.
   virtual void escape(std::uint64_t code) = 0;
+  // false: the decisions' contexts are not needed (they cost a search of the neighbour lists).
+  virtual bool wants_contexts() const { return true; }
 };
 
 // Supplies them (decoder side). Values are bounds-checked by the caller where it knows more;
@@ -84,29 +81,21 @@ class FaceSource {
 // Runs the encoder's traversal, handing each decision to `sink`. Returns, in
 // `traversal_order`, the faces as the decoder will produce them.
 void encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
-                  std::vector<std::vector<int>>* traversal_order, int version, FaceSink& sink);
+                  std::vector<std::vector<int>>* traversal_order, FaceSink& sink);
 
 // Decodes exactly `num_faces` faces from `source`.
 std::vector<std::vector<int>> decode_faces(FaceSource& source, std::uint32_t num_faces,
-                                           int num_vertices, int version);
+                                           int num_vertices);
 
-// Versions 1 and 2: the decisions as three byte streams.
-struct ConnectivityStreams {
-  std::vector<std::uint8_t> symbols;   // one byte per popped gate or component start
-  std::vector<std::uint8_t> ranks;     // varint per coded vertex of a face reached by a gate
-  std::vector<std::uint8_t> vertices;  // varint plain indices: component starts and escapes
+// A sink that drops the decisions: for the traversal order alone.
+class NullFaceSink final : public FaceSink {
+ public:
+  void start(int) override {}
+  void index(std::uint64_t) override {}
+  void symbol(int, const GateContext&) override {}
+  void rank(std::uint64_t, const RankContext&) override {}
+  void escape(std::uint64_t) override {}
+  bool wants_contexts() const override { return false; }
 };
-
-// Faces must be triangles or quads with distinct in-range vertices (checked by the caller).
-ConnectivityStreams encode_faces(const std::vector<std::vector<int>>& faces, int num_vertices,
-                                 std::vector<std::vector<int>>* traversal_order, int version);
-
-// Decodes exactly `num_faces` faces; every stream must be consumed exactly. Throws
-// InputError(source, reason) for any inconsistency.
-std::vector<std::vector<int>> decode_faces(const std::uint8_t* symbols, std::size_t symbols_size,
-                                           const std::uint8_t* ranks, std::size_t ranks_size,
-                                           const std::uint8_t* vertices, std::size_t vertices_size,
-                                           std::uint32_t num_faces, int num_vertices,
-                                           int version, const std::string& source);
 
 }  // namespace mm::codec_detail

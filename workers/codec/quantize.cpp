@@ -19,14 +19,6 @@ Box bounds(const Points& points) {
   return b;
 }
 
-// Step for a box: longest side over the number of grid intervals.
-double step_for(const Box& b, int bits) {
-  const double extent = (b.hi - b.lo).maxCoeff();
-  const double intervals = static_cast<double>((1u << bits) - 1u);
-  const double step = extent / intervals;
-  return step > 0 && std::isfinite(step) ? step : 1.0;  // a single point or a flat nothing
-}
-
 }  // namespace
 
 namespace {
@@ -71,47 +63,19 @@ Quantization quantization_for(const Points& points, int bits) {
   }
   Quantization q;
   q.bits = bits;
-  q.cells = true;
   q.step = std::ldexp(1.0, e);
   for (int a = 0; a < 3; ++a) q.offset[a] = std::ldexp(2.0 * std::floor(std::ldexp(box.lo[a], -e)) + 1.0, e - 1);
-  return q;
-}
-
-Quantization box_quantization_for(const Points& points, int bits) {
-  check_quantisable(points, bits);
-  const Box box = bounds(points);
-  Quantization q;
-  q.bits = bits;
-  q.offset = box.lo;
-  q.step = step_for(box, bits);
-  // Iterate to a fixed point: the box of the dequantised points must give back the same step
-  // (the offset is reproduced exactly, as some point of each axis sits at grid value 0). It
-  // converges in one or two rounds; the step moves by a few ulps at most.
-  for (int round = 0; round < 16; ++round) {
-    const Points back = dequantize(quantize(points, q), q);
-    const double again = step_for(bounds(back), bits);
-    if (again == q.step) break;
-    q.step = again;
-  }
   return q;
 }
 
 GridPoints quantize(const Points& points, const Quantization& q) {
   GridPoints grid(points.rows(), 3);
   const double top = q.max_value();
-  if (q.cells) {
-    const int e = std::ilogb(q.step);
-    for (Eigen::Index i = 0; i < points.rows(); ++i)
-      for (int a = 0; a < 3; ++a) {
-        const double origin = std::floor(std::ldexp(q.offset[a], -e));
-        const double v = std::floor(std::ldexp(points(i, a), -e)) - origin;
-        grid(i, a) = static_cast<std::int32_t>(std::clamp(std::isfinite(v) ? v : 0.0, 0.0, top));
-      }
-    return grid;
-  }
+  const int e = std::ilogb(q.step);
   for (Eigen::Index i = 0; i < points.rows(); ++i)
     for (int a = 0; a < 3; ++a) {
-      const double v = std::round((points(i, a) - q.offset[a]) / q.step);
+      const double origin = std::floor(std::ldexp(q.offset[a], -e));
+      const double v = std::floor(std::ldexp(points(i, a), -e)) - origin;
       grid(i, a) = static_cast<std::int32_t>(std::clamp(std::isfinite(v) ? v : 0.0, 0.0, top));
     }
   return grid;

@@ -1,6 +1,6 @@
 // The .mmc stream: a control polyhedron (triangles and quads, sharp creases, corners) with
-// quantised positions, entropy coded (version 3: an adaptive range coder with context models,
-// codec/stream_v3.h; versions 1 and 2, still read: zstd) and sealed by a CRC-32.
+// quantised positions, entropy coded by an adaptive range coder with context models
+// (codec/stream_v3.h) and sealed by a CRC-32.
 // docs/stream-format.md describes it byte by byte.
 //
 // Vertex order is kept exactly: the watermark lives in the spectrum of this vertex order.
@@ -21,15 +21,10 @@ namespace mm {
 
 struct CodecParams {
   int quant_bits = 12;                        // [kMinQuantBits, kMaxQuantBits]
-  int zstd_level = 19;                        // versions 1 and 2 only
-  // Format written: 3 (default; the range-coded format, stored as version 4 when quant_bits is
-  // 6 or 7, which version 3's header cannot hold) or 2 (to compare sizes, or for readers built
-  // before version 3; 8 bits and more).
-  int format_version = 3;
   // Small key-value strings (asset id, copy id...). Keys: 1..64 bytes of [A-Za-z0-9_.-];
   // values: up to 1024 bytes; at most 32 entries. Never put secrets here.
   std::map<std::string, std::string> metadata;
-  // Rate-distortion snapping, opt-in (empty: off, the default; version 3 only). Per coordinate
+  // Rate-distortion snapping, opt-in (empty: off, the default). Per coordinate
   // (x, y, z of vertex 0, then of vertex 1, ...: 3 entries per vertex), how many grid cells it
   // may move away from its nearest grid value when a value within that reach is cheaper to code
   // (the prediction, a neighbour's value to copy, a smaller residual). Spends error the caller

@@ -567,7 +567,7 @@ std::vector<std::uint8_t> encode_v3(const Mesh& mesh, const Quantization& q, con
   FaceModels fm;
   RangeFaceSink sink(after_faces, fm);
   std::vector<std::vector<int>> faces;
-  encode_faces(mesh.faces, n, &faces, 3, sink);
+  encode_faces(mesh.faces, n, &faces, sink);
   const auto edges = unique_edges(mesh);
   const Predictors pred = predictors(faces, edges, n);
 
@@ -627,7 +627,6 @@ DecodedStream decode_v3(const std::uint8_t* data, std::size_t size, const std::s
   if (exponent < kMinCellExponent || exponent > kMaxCellExponent)
     in.fail("cell exponent " + std::to_string(exponent) + " outside [" + std::to_string(kMinCellExponent) + ", " +
             std::to_string(kMaxCellExponent) + "]");
-  q.cells = true;
   q.step = std::ldexp(1.0, static_cast<int>(exponent));
   for (int a = 0; a < 3; ++a) {
     const std::int64_t o = unzigzag(in.varint("cell origin", 1ull << 60));
@@ -654,7 +653,7 @@ DecodedStream decode_v3(const std::uint8_t* data, std::size_t size, const std::s
   FaceModels fm;
   RangeFaceSource src(br, fm);
   Mesh& mesh = out.mesh;
-  mesh.faces = decode_faces(src, static_cast<std::uint32_t>(nf), n, 3);
+  mesh.faces = decode_faces(src, static_cast<std::uint32_t>(nf), n);
   const int mode = static_cast<int>(br.bits(3));
 
   const auto edges = unique_edges(mesh);

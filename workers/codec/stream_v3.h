@@ -1,8 +1,8 @@
-// Stream format version 3 (docs/stream-format.md): a compact header, then one body coded by
-// the adaptive binary range coder (codec/range_coder.h) in place of zstd and Rice codes: the
-// face traversal's decisions (codec/connectivity.h), coordinate residuals, crease flags per
-// edge, corner flags per vertex and metadata, each with small context models. The envelope
-// (magic, version, CRC-32) is the same as in versions 1 and 2 and is checked by the caller.
+// The stream's body (docs/stream-format.md): a compact header, then one body coded by the
+// adaptive binary range coder (codec/range_coder.h): the face traversal's decisions
+// (codec/connectivity.h), coordinate residuals, crease flags per edge, corner flags per vertex
+// and metadata, each with small context models. The envelope (magic, version, CRC-32) is
+// checked by the caller (codec/stream_detail.h).
 #pragma once
 #include <cstdint>
 #include <map>
