@@ -1,10 +1,5 @@
 #include "service/detection_store.h"
 
-#include <cctype>
-#include <filesystem>
-#include <string_view>
-
-#include "meshio/read_mesh.h"
 
 namespace mm::service {
 
@@ -43,16 +38,6 @@ std::optional<jobs::PolyhedronRecord> StoreForDetection::polyhedron(std::int64_t
 }
 
 std::vector<std::uint8_t> StoreForDetection::blob(const std::string& sha256) { return st_.blobs().get(sha256); }
-
-std::optional<Mesh> StoreForDetection::original(std::int64_t asset_id) {
-  auto a = st_.get_asset(asset_id);
-  if (!a) return std::nullopt;
-  const auto bytes = st_.blobs().get(a->sha256);
-  std::string ext = std::filesystem::path(a->name).extension().string();
-  if (!ext.empty()) ext.erase(0, 1);
-  for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return parse_mesh(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), ext, a->name);
-}
 
 Key StoreForDetection::customer_key(std::int64_t customer_id, int key_version) {
   return st_.customer_key(customer_id, key_version).key.bytes();

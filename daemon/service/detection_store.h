@@ -12,7 +12,6 @@ class StoreForDetection final : public jobs::DetectionStore {
   std::optional<std::int64_t> asset_with_sha256(const std::string& sha256) override;
   std::optional<jobs::PolyhedronRecord> polyhedron(std::int64_t asset_id, const std::string& prepare_key) override;
   std::vector<std::uint8_t> blob(const std::string& sha256) override;
-  std::optional<Mesh> original(std::int64_t asset_id) override;
   Key customer_key(std::int64_t customer_id, int key_version) override;
 
  private:

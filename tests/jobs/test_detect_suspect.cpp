@@ -54,7 +54,6 @@ class MemoryStore : public DetectionStore {
     return it == polyhedra.end() ? std::nullopt : std::optional<PolyhedronRecord>(it->second);
   }
   std::vector<std::uint8_t> blob(const std::string& sha) override { return blobs.at(sha); }
-  std::optional<Mesh> original(std::int64_t) override { return std::nullopt; }
   Key customer_key(std::int64_t customer, int version) override {
     ++key_reads;
     return keys.at({customer, version});

@@ -50,14 +50,10 @@ TEST(PreparedAsset, CompressedPolyhedronRoundTripsExactly) {
   EXPECT_EQ(b.normalization.scale, a.normalization.scale);
   EXPECT_EQ(b.signature.vertices, m.num_vertices());
   EXPECT_EQ(encode_polyhedron(b), poly);
-  // A record of the uncompressed era (MMPOLY01: no levels field) still decodes, with levels 0.
+  // One record format: any other magic is refused.
   std::vector<std::uint8_t> v1 = poly;
   v1[7] = '1';
-  std::size_t levels_at = v1.size() - 8 - a.signature.to_json().size() - 4;
-  v1.erase(v1.begin() + static_cast<long>(levels_at), v1.begin() + static_cast<long>(levels_at) + 4);
-  PreparedAsset old = decode_prepared(v1, basis, "v1");
-  EXPECT_EQ(old.levels, 0);
-  EXPECT_TRUE((old.control.points.array() == a.control.points.array()).all());
+  EXPECT_THROW(decode_prepared(v1, basis, "v1"), InputError);
 }
 
 TEST(PreparedAsset, CacheKeyNamesEveryCompressionOption) {
@@ -203,10 +199,10 @@ TEST(ShapeSignature, IgnoresTessellationScalePoseNotShape) {
   auto back = ShapeSignature::from_json(s.to_json());
   EXPECT_LT(signature_distance(s, back), 1e-12);
   EXPECT_THROW(ShapeSignature::from_json("{\"vertices\": 3}"), InputError);
-  // Old (vertex-based) signatures never compare with new ones.
+  // One signature version: another is refused.
   ShapeSignature old = s;
   old.version = 1;
-  EXPECT_FALSE(std::isfinite(signature_distance(s, old)));
+  EXPECT_THROW(ShapeSignature::from_json(old.to_json()), InputError);
 }
 
 }  // namespace

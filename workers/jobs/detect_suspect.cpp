@@ -15,8 +15,7 @@ using nlohmann::json;
 
 const char* method_name(Method m) { return m == Method::Additive ? "additive" : "multiplicative"; }
 
-// The asset's shape signature from one of its polyhedra; rows of the vertex-based era are
-// recomputed from the original, so every asset compares with the same signature version.
+// The asset's shape signature, kept with each of its polyhedra.
 std::optional<ShapeSignature> asset_signature(DetectionStore& st, std::int64_t asset_id,
                                               const std::vector<IssuedCopyRecord>& copies,
                                               std::vector<std::string>* warnings) {
@@ -24,11 +23,7 @@ std::optional<ShapeSignature> asset_signature(DetectionStore& st, std::int64_t a
     auto row = st.polyhedron(asset_id, copy_prepare_key(c.params_json));
     if (!row) continue;
     try {
-      auto sig = ShapeSignature::from_json(json::parse(row->meta_json).at("signature").dump());
-      if (sig.version == ShapeSignature{}.version) return sig;
-      auto original = st.original(asset_id);
-      if (!original) return std::nullopt;
-      return shape_signature(*original);
+      return ShapeSignature::from_json(json::parse(row->meta_json).at("signature").dump());
     } catch (const std::exception& e) {
       warnings->push_back("asset " + std::to_string(asset_id) + ": no usable shape signature: " + e.what());
       return std::nullopt;

@@ -53,8 +53,6 @@ class DetectionStore {
   virtual std::optional<std::int64_t> asset_with_sha256(const std::string& sha256) = 0;
   virtual std::optional<PolyhedronRecord> polyhedron(std::int64_t asset_id, const std::string& prepare_key) = 0;
   virtual std::vector<std::uint8_t> blob(const std::string& sha256) = 0;
-  // The asset's original, parsed (shape signatures of old rows are recomputed from it).
-  virtual std::optional<Mesh> original(std::int64_t asset_id) = 0;
   virtual Key customer_key(std::int64_t customer_id, int key_version) = 0;  // never logged
 };
 

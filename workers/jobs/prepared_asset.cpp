@@ -17,7 +17,6 @@ namespace mm::jobs {
 
 namespace {
 
-constexpr char kPolyMagicV1[8] = {'M', 'M', 'P', 'O', 'L', 'Y', '0', '1'};
 constexpr char kPolyMagic[8] = {'M', 'M', 'P', 'O', 'L', 'Y', '0', '2'};
 
 struct Writer {
@@ -49,14 +48,10 @@ struct Reader {
     if (n > in.size() - pos) fail("truncated prepared-asset record");
   }
   // 2 for the current format, 1 for records of the uncompressed era.
-  int magic() {
+  void magic() {
     need(8);
-    int v = std::memcmp(in.data() + pos, kPolyMagic, 8) == 0     ? 2
-            : std::memcmp(in.data() + pos, kPolyMagicV1, 8) == 0 ? 1
-                                                                 : 0;
-    if (v == 0) fail("not a prepared-asset record (bad magic)");
+    if (std::memcmp(in.data() + pos, kPolyMagic, 8) != 0) fail("not a prepared-asset record (bad magic)");
     pos += 8;
-    return v;
   }
   std::uint64_t u64() {
     need(8);
@@ -98,17 +93,11 @@ std::string fallback_key(const std::vector<double>& angles) {
 std::string PrepareParams::key() const {
   // v2: control polyhedron = compress(original, compression), dense Kirchhoff basis. Every
   // compression option changes the polyhedron, so all are in the key (doubles in shortest
-  // round-trip form); max_control_vertices only refuses and is not. v1 (normalised input mesh)
-  // rows stay readable for the copies issued from them. "verify=dense": rounds meet the
-  // tolerance only by the quality code's dense measurement (as `meshmark compress`); rows made
-  // before it (without) stay readable the same way, and so do rows fitted with triangles only
-  // (before rail quads: no ";quads=rail") and rows whose rounds all started from the part
-  // (before warm rounds: no ";rounds=warm", which compress() runs without coarsening) and rows
-  // fitted before coarse rounds and the fit's reweighting (";rounds=warm" alone) and rows fitted
-  // under earlier schedules without coarsening (";rounds=coarse-warm;fit=reweighted", then
-  // ";rounds=coarse-warm;warm-quads=0;bisect=6;fit=reweighted"; now rounds_schedule_key()
-  // spells out compress.cpp's constants, so a change to them fits assets again); rows fitted
-  // with three crease samples on every sharp edge (before ";crease-spacing=", fit_sampling_key()).
+  // round-trip form); max_control_vertices only refuses and is not. "verify=dense": rounds meet
+  // the tolerance by the quality code's dense measurement (as `meshmark compress`).
+  // rounds_schedule_key() and fit_sampling_key() spell out compress.cpp's constants, so a change
+  // to them fits assets again; rows under other keys stay readable for the copies issued from
+  // them.
   const CompressOptions& c = compression;
   return "prepare-v2;compress;verify=dense;tolerance=" + shortest_text(c.tolerance) + ";max_vertices=" + std::to_string(c.max_vertices) +
          ";levels=" + std::to_string(c.levels) + ";angle=" + shortest_text(c.angle_degrees) +
@@ -131,7 +120,9 @@ ShapeSignature ShapeSignature::from_json(const std::string& text) {
   try {
     auto j = nlohmann::json::parse(text);
     ShapeSignature s;
-    s.version = j.contains("version") ? j.at("version").get<int>() : 1;
+    s.version = j.at("version").get<int>();
+    if (s.version != ShapeSignature{}.version)
+      throw InputError("shape signature", "version " + std::to_string(s.version) + " is not supported");
     s.vertices = j.at("vertices").get<int>();
     s.faces = j.at("faces").get<int>();
     for (int i = 0; i < 3; ++i) {
@@ -199,10 +190,6 @@ double signature_distance(const ShapeSignature& a, const ShapeSignature& b) {
   double d = 0;
   for (int i = 0; i < 3; ++i) d += std::abs(a.box[i] - b.box[i]);
   for (int i = 0; i < 3; ++i) d += 4.0 * std::abs(std::sqrt(a.moments[i]) - std::sqrt(b.moments[i]));
-  if (a.version == 1) {  // vertex-based signatures also compared vertex counts
-    double nv = std::max(1, std::max(a.vertices, b.vertices));
-    d += std::abs(a.vertices - b.vertices) / nv;
-  }
   return d;
 }
 
@@ -284,7 +271,7 @@ PreparedAsset decode_prepared(const std::vector<std::uint8_t>& poly,
   PreparedAsset a;
   {
     Reader r{poly, source};
-    const int version = r.magic();
+    r.magic();
     auto n = r.count(24);
     a.control.points.resize(static_cast<Eigen::Index>(n), 3);
     for (std::uint64_t i = 0; i < n; ++i)
@@ -316,10 +303,8 @@ PreparedAsset decode_prepared(const std::vector<std::uint8_t>& poly,
     }
     for (int k = 0; k < 3; ++k) a.normalization.offset[k] = r.f64();
     a.normalization.scale = r.f64();
-    if (version >= 2) {
-      a.levels = r.i32();
-      if (a.levels < 0 || a.levels > 8) r.fail("subdivision levels out of range");
-    }
+    a.levels = r.i32();
+    if (a.levels < 0 || a.levels > 8) r.fail("subdivision levels out of range");
     auto ns = r.count(1);
     std::string sig(reinterpret_cast<const char*>(poly.data() + r.pos), ns);
     r.pos += ns;

@@ -35,17 +35,17 @@ struct PrepareParams {
 // vertices, a remeshed or a subdivided copy have about the same signature as the original; and
 // in the principal frame, so a rescaled, rotated or shifted copy has the same signature.
 struct ShapeSignature {
-  int version = 2;               // 1: vertex-based (old rows); compare only equal versions
+  int version = 2;               // from_json refuses any other
   int vertices = 0;              // informative only
   int faces = 0;                 // informative only
-  double box[3] = {0, 0, 0};     // extents along the principal axes / the largest (v1: bounding box)
+  double box[3] = {0, 0, 0};     // extents along the principal axes / the largest
   double moments[3] = {0, 0, 0}; // ascending eigenvalues of the area-weighted surface covariance / trace
   std::string to_json() const;
   static ShapeSignature from_json(const std::string& json);  // InputError on malformed
 };
 ShapeSignature shape_signature(const Mesh& mesh);
 // 0 for identical shapes; grows with box and moment differences. Scale, shift and tessellation
-// invariant (and rotation invariant from version 2). Infinity for different versions.
+// and rotation invariant.
 double signature_distance(const ShapeSignature& a, const ShapeSignature& b);
 
 struct PreparedAsset {
@@ -53,7 +53,7 @@ struct PreparedAsset {
   Normalization normalization;  // original units -> unit box
   SpectralBasis basis;          // of control's connectivity
   ShapeSignature signature;     // of the original
-  int levels = 0;               // subdivision levels of the decoded copy (0: old uncompressed rows)
+  int levels = 0;               // subdivision levels of the decoded copy
   CompressResult compression;   // statistics of the fit (prepare_asset only; not serialised)
 };
 
@@ -63,8 +63,8 @@ struct PreparedAsset {
 PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
                             const std::string& source);
 
-// Exact little-endian serialisation (doubles bit for bit; format MMPOLY02 adds `levels`, MMPOLY01
-// records of the uncompressed era still decode with levels 0); the basis uses serialize_basis().
+// Exact little-endian serialisation (doubles bit for bit; format MMPOLY02); the basis uses
+// serialize_basis().
 // Decoding checks every size and index against the buffer and throws InputError(source, ...) on
 // anything inconsistent.
 std::vector<std::uint8_t> encode_polyhedron(const PreparedAsset& asset);
