@@ -10,6 +10,7 @@
 #include <set>
 #include <random>
 
+#include "common/seeded_keys.h"
 #include "jobs/copy_identity.h"
 #include "jobs/detect_suspect.h"
 #include "jobs/payload.h"
@@ -19,12 +20,7 @@
 namespace mm::jobs {
 namespace {
 
-Key key_from(int seed) {
-  Key k{};
-  std::mt19937 g(static_cast<unsigned>(seed));
-  for (auto& b : k) b = static_cast<std::uint8_t>(g());
-  return k;
-}
+using test::key_from;
 
 std::string sha_of(const std::string& label) {  // stand-in content address
   unsigned char h[32];

@@ -11,6 +11,7 @@
 #include <random>
 
 #include "codec/stream.h"
+#include "common/seeded_keys.h"
 #include "common/shared_meshes.h"
 #include "jobs/detect.h"
 #include "jobs/payload.h"
@@ -22,18 +23,8 @@
 namespace mm::jobs {
 namespace {
 
-Key key_from(int seed) {
-  Key k{};
-  std::mt19937 g(static_cast<unsigned>(seed));
-  for (auto& b : k) b = static_cast<std::uint8_t>(g());
-  return k;
-}
-Nonce nonce_from(int seed) {
-  Nonce n{};
-  std::mt19937 g(static_cast<unsigned>(seed) * 7919u);
-  for (auto& b : n) b = static_cast<std::uint8_t>(g());
-  return n;
-}
+using test::key_from;
+using test::nonce_from;
 
 // Uniform noise of +-amplitude x the largest bounding-box side, as `meshmark attack noise`.
 Mesh with_noise(Mesh m, double amplitude, unsigned seed) {
