@@ -1,0 +1,204 @@
+// The job queue: every state transition one BEGIN IMMEDIATE transaction (docs/queue-contract.md).
+#include "store/sqlite_store_impl.h"
+
+namespace mm::store::sqlite_detail {
+
+EnqueueResult SqliteStore::enqueue(const JobSpec& spec, const std::string& actor) {
+  if (spec.kind.empty()) throw StoreError("enqueue: job kind is empty");
+  if (spec.max_attempts < 1) throw StoreError("enqueue: max_attempts must be at least 1");
+  require_json(spec.payload_json, "job payload");
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  if (!spec.idempotency_key.empty()) {
+    Stmt q(db_, sel(kJobCols, "FROM jobs WHERE idempotency_key = ?").c_str());
+    if (q.bind(1, spec.idempotency_key).step()) return {read_job(q), false};
+  }
+  Millis t = now();
+  Stmt ins(db_,
+           "INSERT INTO jobs(kind, payload_json, priority, max_attempts, idempotency_key, created_at, "
+           "scheduled_at) VALUES(?,?,?,?,?,?,?) RETURNING id");
+  ins.bind(1, spec.kind).bind(2, spec.payload_json).bind(3, spec.priority).bind(4, spec.max_attempts);
+  if (spec.idempotency_key.empty()) ins.bind_null(5); else ins.bind(5, spec.idempotency_key);
+  ins.bind(6, t).bind(7, spec.scheduled_at.value_or(t)).step();
+  std::int64_t id = ins.i64(0);
+  insert_audit({actor, "job.enqueue", "job:" + std::to_string(id), json{{"kind", spec.kind}}.dump()});
+  Job j = job_by_id(id).value();
+  tx.commit();
+  return {std::move(j), true};
+}
+
+std::optional<Job> SqliteStore::claim(const std::string& worker_id, Millis lease, const std::vector<std::string>& kinds) {
+  if (worker_id.empty()) throw StoreError("claim: worker id is empty");
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  Millis t = now();
+  reap(t);
+  static const std::string q = std::string(
+      "UPDATE jobs SET state = 'running', attempt = attempt + 1, attempted_at = ?1, worker_id = ?2, "
+      "lease_until = ?3 WHERE id = (SELECT id FROM jobs WHERE state IN ('available', 'retryable') "
+      "AND scheduled_at <= ?1 AND (?4 IS NULL OR kind IN (SELECT value FROM json_each(?4))) "
+      "ORDER BY priority DESC, scheduled_at, id LIMIT 1) RETURNING ") + kJobCols;
+  Stmt s(db_, q.c_str());
+  s.bind(1, t).bind(2, worker_id).bind(3, t + lease);
+  if (kinds.empty()) s.bind_null(4); else s.bind(4, json(kinds).dump());
+  std::optional<Job> j;
+  if (s.step()) j = read_job(s);
+  s.run();
+  tx.commit();
+  return j;
+}
+
+void SqliteStore::heartbeat(std::int64_t job_id, const std::string& worker_id, Millis lease) {
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  Stmt u(db_, "UPDATE jobs SET lease_until = ? WHERE id = ? AND state = 'running' AND worker_id = ?");
+  u.bind(1, now() + lease).bind(2, job_id).bind(3, worker_id).run();
+  if (u.changes() == 0) throw lease_lost(job_id, worker_id);
+  tx.commit();
+}
+
+CompleteResult SqliteStore::complete(std::int64_t job_id, const std::string& worker_id, const JobRecords& r) {
+  require_json(r.result_json, "job result");
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  Millis t = now();
+  Stmt u(db_,
+         "UPDATE jobs SET state = 'completed', finished_at = ?, lease_until = NULL, result_json = ? "
+         "WHERE id = ? AND state = 'running' AND worker_id = ?");
+  u.bind(1, t).bind(2, r.result_json).bind(3, job_id).bind(4, worker_id).run();
+  if (u.changes() == 0) throw lease_lost(job_id, worker_id);
+  fault("complete.after_job_update");
+  CompleteResult out;
+  for (const NewCopy& c : r.copies) {
+    bool existed = false;
+    out.copy_ids.push_back(insert_copy(c, job_id, worker_id, existed));
+    if (existed) ++out.copies_already_existed;
+  }
+  fault("complete.after_copies");
+  for (const NewDetection& d : r.detections) out.detection_ids.push_back(insert_detection(d, job_id, worker_id));
+  fault("complete.after_detections");
+  for (const NewAudit& a : r.audit) insert_audit(a);
+  insert_audit({worker_id, "job.complete", "job:" + std::to_string(job_id), "{}"});
+  fault("complete.before_commit");
+  tx.commit();
+  return out;
+}
+
+JobState SqliteStore::fail(std::int64_t job_id, const std::string& worker_id, const std::string& error, bool retryable) {
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  Stmt q(db_, "SELECT attempt, max_attempts FROM jobs WHERE id = ? AND state = 'running' AND worker_id = ?");
+  if (!q.bind(1, job_id).bind(2, worker_id).step()) throw lease_lost(job_id, worker_id);
+  int attempt = static_cast<int>(q.i64(0));
+  int max_attempts = static_cast<int>(q.i64(1));
+  Millis t = now();
+  JobState next = retryable && attempt < max_attempts ? JobState::retryable : JobState::discarded;
+  Stmt u(db_,
+         "UPDATE jobs SET state = ?1, scheduled_at = ?2, finished_at = ?3, lease_until = NULL, "
+         "errors_json = json_insert(errors_json, '$[#]', json_object('attempt', attempt, 'at', ?4, 'error', ?5)) "
+         "WHERE id = ?6");
+  u.bind(1, to_string(next));
+  if (next == JobState::retryable) u.bind(2, t + backoff(attempt)).bind_null(3);
+  else u.bind(2, t).bind(3, t);
+  u.bind(4, t).bind(5, clip(error, 4000)).bind(6, job_id).run();
+  if (next == JobState::discarded)
+    insert_audit({worker_id, "job.discard", "job:" + std::to_string(job_id),
+                  json{{"attempt", attempt}}.dump()});
+  tx.commit();
+  return next;
+}
+
+void SqliteStore::release(std::int64_t job_id, const std::string& worker_id) {
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  Stmt u(db_,
+         "UPDATE jobs SET state = 'available', attempt = MAX(attempt - 1, 0), lease_until = NULL "
+         "WHERE id = ? AND state = 'running' AND worker_id = ?");
+  u.bind(1, job_id).bind(2, worker_id).run();
+  if (u.changes() == 0) throw lease_lost(job_id, worker_id);
+  tx.commit();
+}
+
+bool SqliteStore::cancel(std::int64_t job_id, const std::string& actor) {
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  Stmt u(db_,
+         "UPDATE jobs SET state = 'cancelled', finished_at = ?, lease_until = NULL "
+         "WHERE id = ? AND state IN ('available', 'retryable', 'running')");
+  u.bind(1, now()).bind(2, job_id).run();
+  if (u.changes() == 0) return false;
+  insert_audit({actor, "job.cancel", "job:" + std::to_string(job_id), "{}"});
+  tx.commit();
+  return true;
+}
+
+bool SqliteStore::retry(std::int64_t job_id, const std::string& actor) {
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  Stmt u(db_,
+         "UPDATE jobs SET state = 'available', scheduled_at = ?, finished_at = NULL, "
+         "max_attempts = MAX(max_attempts, attempt + 1) "
+         "WHERE id = ? AND state IN ('retryable', 'discarded', 'cancelled')");
+  u.bind(1, now()).bind(2, job_id).run();
+  if (u.changes() == 0) return false;
+  insert_audit({actor, "job.retry", "job:" + std::to_string(job_id), "{}"});
+  tx.commit();
+  return true;
+}
+
+int SqliteStore::reap_expired_leases() {
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  int n = reap(now());
+  tx.commit();
+  return n;
+}
+
+std::optional<Job> SqliteStore::get_job(std::int64_t id) {
+  std::lock_guard<std::mutex> l(m_);
+  return job_by_id(id);
+}
+
+std::vector<Job> SqliteStore::list_jobs(const JobFilter& f) {
+  std::lock_guard<std::mutex> l(m_);
+  Stmt q(db_, sel(kJobCols, "FROM jobs WHERE (?1 IS NULL OR state = ?1) AND (?2 = '' OR kind = ?2) "
+                            "AND (?3 = 0 OR id < ?3) ORDER BY id DESC LIMIT ?4").c_str());
+  if (f.state) q.bind(1, to_string(*f.state)); else q.bind_null(1);
+  q.bind(2, f.kind).bind(3, f.before_id).bind(4, f.limit);
+  std::vector<Job> out;
+  while (q.step()) out.push_back(read_job(q));
+  return out;
+}
+
+QueueCounts SqliteStore::counts() {
+  std::lock_guard<std::mutex> l(m_);
+  QueueCounts c;
+  Stmt q(db_, "SELECT state, COUNT(*) FROM jobs GROUP BY state");
+  while (q.step()) {
+    std::int64_t n = q.i64(1);
+    switch (job_state_from_string(q.text(0))) {
+      case JobState::available: c.available = n; break;
+      case JobState::running: c.running = n; break;
+      case JobState::completed: c.completed = n; break;
+      case JobState::retryable: c.retryable = n; break;
+      case JobState::discarded: c.discarded = n; break;
+      case JobState::cancelled: c.cancelled = n; break;
+    }
+  }
+  return c;
+}
+
+std::optional<Millis> SqliteStore::next_scheduled() {
+  std::lock_guard<std::mutex> l(m_);
+  Stmt q(db_, "SELECT MIN(scheduled_at) FROM jobs WHERE state IN ('available', 'retryable')");
+  q.step();
+  return q.opt_i64(0);
+}
+
+bool SqliteStore::integrity_ok() {
+  std::lock_guard<std::mutex> l(m_);
+  Stmt q(db_, "PRAGMA integrity_check");
+  return q.step() && q.text(0) == "ok" && !q.step();
+}
+
+}  // namespace mm::store::sqlite_detail
