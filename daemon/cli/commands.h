@@ -4,6 +4,7 @@
 #pragma once
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 #include <string>
 
@@ -27,6 +28,10 @@ inline const CLI::Validator kFiniteNumber(
       return {};
     },
     "FINITE");
+
+// Runs f; store and key failures (missing home, unprotected master key, unknown name) are the
+// user's to fix: they become CommandFailed(1) with their message, not internal errors.
+void refusing_store_errors(const std::function<void()>& f);
 
 void add_offline_commands(CLI::App& app);  // info, sample, keygen, attack, embed, extract
 void add_mark_commands(CLI::App& app);     // embed, extract (called by add_offline_commands)

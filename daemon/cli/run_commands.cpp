@@ -37,32 +37,28 @@ std::unique_ptr<store::Store> open_for_submit(SubmitOptions& o) {
 
 void submit(SubmitOptions& o, bool protect) {
   try {
-    auto st = open_for_submit(o);
-    if (protect && !st->find_customer(o.customer))
-      throw CommandFailed(1, "unknown customer \"" + o.customer + "\" (add it with: meshmark customer add " +
-                                 o.customer + ")");
-    json out = json::array();
-    for (const auto& f : o.files) {
-      std::string name = fs::path(f).filename().string();
-      auto r = protect ? service::submit_protect(*st, o.customer, f, name, o.max_attempts, "cli", o.format)
-                       : service::submit_detect(*st, f, name, o.max_attempts, "cli");
-      if (o.json)
-        out.push_back({{"file", f}, {"job_id", r.job.id}, {"kind", r.job.kind}, {"created", r.created},
-                       {"state", store::to_string(r.job.state)}});
-      else
-        std::cout << "job " << r.job.id << " " << r.job.kind << " " << f
-                  << (r.created ? "" : " (already submitted, state " + std::string(store::to_string(r.job.state)) + ")")
-                  << "\n";
-    }
-    if (o.json) std::cout << out.dump(2) << "\n";
+    refusing_store_errors([&] {
+      auto st = open_for_submit(o);
+      if (protect && !st->find_customer(o.customer))
+        throw CommandFailed(1, "unknown customer \"" + o.customer + "\" (add it with: meshmark customer add " +
+                                   o.customer + ")");
+      json out = json::array();
+      for (const auto& f : o.files) {
+        std::string name = fs::path(f).filename().string();
+        auto r = protect ? service::submit_protect(*st, o.customer, f, name, o.max_attempts, "cli", o.format)
+                         : service::submit_detect(*st, f, name, o.max_attempts, "cli");
+        if (o.json)
+          out.push_back({{"file", f}, {"job_id", r.job.id}, {"kind", r.job.kind}, {"created", r.created},
+                         {"state", store::to_string(r.job.state)}});
+        else
+          std::cout << "job " << r.job.id << " " << r.job.kind << " " << f
+                    << (r.created ? "" : " (already submitted, state " + std::string(store::to_string(r.job.state)) + ")")
+                    << "\n";
+      }
+      if (o.json) std::cout << out.dump(2) << "\n";
+    });
   } catch (const service::ConfigError& e) {
     throw CommandFailed(78, e.what());
-  } catch (const keys::KeyError& e) {
-    throw CommandFailed(1, e.what());
-  } catch (const store::StoreError& e) {
-    throw CommandFailed(1, e.what());
-  } catch (const store::BlobError& e) {
-    throw CommandFailed(1, e.what());
   }
 }
 

@@ -28,21 +28,10 @@ void add_common(CLI::App* cmd, Common& c) {
   cmd->add_flag("--json", c.json, "print JSON for scripts");
 }
 
-// Store and key failures are the user's to fix (missing home, unprotected master key, unknown
-// name): report them as "refused" (exit 1) with the message, not as internal errors.
+// Store and key failures as refusals (refusing_store_errors).
 template <class F>
 std::function<void()> guarded(F f) {
-  return [f] {
-    try {
-      f();
-    } catch (const keys::KeyError& e) {
-      throw CommandFailed(1, e.what());
-    } catch (const store::StoreError& e) {
-      throw CommandFailed(1, e.what());
-    } catch (const store::BlobError& e) {
-      throw CommandFailed(1, e.what());
-    }
-  };
+  return [f] { refusing_store_errors(f); };
 }
 
 std::unique_ptr<store::Store> open(const Common& c, bool need_key = false) {
@@ -394,6 +383,18 @@ void add_listings(CLI::App& app) {
 }
 
 }  // namespace
+
+void refusing_store_errors(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const keys::KeyError& e) {
+    throw CommandFailed(1, e.what());
+  } catch (const store::StoreError& e) {
+    throw CommandFailed(1, e.what());
+  } catch (const store::BlobError& e) {
+    throw CommandFailed(1, e.what());
+  }
+}
 
 void add_store_commands(CLI::App& app) {
   add_init(app);
