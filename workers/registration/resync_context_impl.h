@@ -129,4 +129,10 @@ struct ResyncContext::Impl {
   std::unique_ptr<LevelData> build_level(int l) const;
 };
 
+namespace registration_detail {
+// A remeshed suspect (no vertex correspondence): the control points fitted to its surface by
+// closest points both ways against the refined original at the context's fit level.
+Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, const ResyncOptions& o);
+}  // namespace registration_detail
+
 }  // namespace mm

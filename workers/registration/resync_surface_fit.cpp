@@ -1,0 +1,145 @@
+#include "registration/resync_context_impl.h"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <optional>
+#include <array>
+#include <cmath>
+#include <atomic>
+#include <mutex>
+#include <random>
+#include <stdexcept>
+
+#include "geometry/closest_point.h"
+#include "geometry/nearest_neighbours.h"
+
+namespace mm::registration_detail {
+
+Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, const ResyncOptions& o) {
+  Resynchronized r;
+  r.method = "surface-fit";
+  const auto tris = triangle_list(suspect);
+  const TriangleIndex suspect_tree(suspect.points, tris);
+  if (suspect_tree.empty()) throw InputError(o.source, "no face of positive area");
+  // The data is far more redundant than the 3n unknowns: a capped, evenly strided share of it.
+  const Points samples = stack(strided(suspect.points, o.suspect_samples),
+                               sample_area(suspect.points, tris, o.suspect_samples, o.seed));
+
+  const FitSurface& fit = ctx.fit();
+  if (o.align) {
+    const TriangleIndex& tree = *fit.tree;
+    ClosestPoint closest = [&tree](const Eigen::Vector3d& q) { return tree.closest(q).point; };
+    const Points moving = sample_area(suspect.points, tris, o.alignment_samples, o.seed + 1);
+    const Points fixed = strided(fit.samples, o.alignment_samples);
+    r.to_control_frame = align_similarity(moving, moving, fixed, closest, o.icp).transform;
+  }
+  const Similarity& T = r.to_control_frame;
+  const Similarity Tinv = T.inverse();
+  const LevelData& level = ctx.level(ctx.fit_level);
+  const SparseOperator& S = level.op.S;
+  const int n = ctx.control.num_vertices();
+  const int nr = static_cast<int>(S.rows());
+  const double max_d = o.max_distance * ctx.diagonal;
+
+  const Points moved = T.apply(samples);
+  Points x = ctx.control.points;
+  double residual = 0;
+  std::vector<TriangleHit> hits(static_cast<size_t>(moved.rows()));
+  // Unknowns: the control points' x, y, z (3n), coupled through the normals.
+  const int n3 = 3 * n;
+  Eigen::VectorXd x0(n3);
+  for (int a = 0; a < 3; ++a) x0.segment(a * n, n) = ctx.control.points.col(a);
+  SpMat S3(3 * nr, n3);
+  {
+    std::vector<Trip> s3;
+    s3.reserve(static_cast<size_t>(3 * S.nonZeros()));
+    for (int v = 0; v < nr; ++v)
+      for (SparseOperator::InnerIterator e(S, v); e; ++e)
+        for (int a = 0; a < 3; ++a) s3.emplace_back(a * nr + v, a * n + static_cast<int>(e.col()), e.value());
+    S3.setFromTriplets(s3.begin(), s3.end());
+  }
+  for (int it = 0; it < std::max(1, o.fit_iterations); ++it) {
+    // Pairs against the current estimate: the mark moves the surface by a fair fraction of the
+    // refined edge length, so pairs with the original surface would be biased.
+    const Points R = it == 0 ? level.points : apply_subdivision(level.op, x);
+    const TriangleIndex current_tree(R, fit.tris);
+    const TriangleIndex& surface = it == 0 ? *fit.tree : current_tree;
+    std::vector<Trip> t;
+    std::vector<double> b;
+    // One point-to-plane row: normal . (sum_c w_c (S x)_{v_c} - target) = 0, over the refined
+    // vertices' coordinates (column a * nr + v); times blockdiag(S, S, S) below.
+    auto add_row = [&](std::initializer_list<std::pair<int, double>> refined, const Eigen::Vector3d& normal,
+                       const Eigen::Vector3d& target) {
+      const int row = static_cast<int>(b.size());
+      for (auto [v, w] : refined)
+        for (int a = 0; a < 3; ++a)
+          if (w != 0 && normal[a] != 0) t.emplace_back(row, a * nr + v, normal[a] * w);
+      b.push_back(normal.dot(target));
+    };
+    int accepted = 0;
+    // Suspect samples -> current refined surface (its face normal).
+    for (Eigen::Index k = 0; k < moved.rows(); ++k) {
+      const Eigen::Vector3d q = moved.row(k).transpose();
+      TriangleHit& h = hits[static_cast<size_t>(k)];
+      if (it == 0) {
+        h = surface.closest(q);
+      } else {
+        const auto& f = fit.tris[h.triangle];
+        const Eigen::Vector3d on = h.barycentric[0] * R.row(f[0]).transpose() + h.barycentric[1] * R.row(f[1]).transpose() +
+                                   h.barycentric[2] * R.row(f[2]).transpose();
+        h = surface.closest(q, TriangleHint{h.triangle, on});
+      }
+      if (!(h.distance <= max_d)) continue;
+      const auto& f = fit.tris[h.triangle];
+      const Eigen::Vector3d p0 = R.row(f[0]), p1 = R.row(f[1]), p2 = R.row(f[2]);
+      const Eigen::Vector3d normal = (p1 - p0).cross(p2 - p0).normalized();
+      if (!normal.allFinite()) continue;
+      add_row({{f[0], h.barycentric[0]}, {f[1], h.barycentric[1]}, {f[2], h.barycentric[2]}}, normal, q);
+      ++accepted;
+    }
+    r.matched_fraction = static_cast<double>(accepted) / static_cast<double>(moved.rows());
+    if (accepted < 3) throw InputError(o.source, "nothing matched the original surface after alignment");
+    // Refined vertices of the current estimate -> suspect surface (the suspect's face normal).
+    const int pairs = std::min(nr, std::max(1, o.suspect_samples));
+    for (int k = 0; k < pairs; ++k) {
+      const int v = static_cast<int>(static_cast<long long>(k) * nr / pairs);
+      const Eigen::RowVector3d pv = R.row(v);
+      const TriangleHit h = suspect_tree.closest(Tinv.apply(pv).transpose());
+      const Eigen::Vector3d c = T.apply(Eigen::RowVector3d(h.point.transpose())).transpose();
+      const double d = (c - pv.transpose()).norm();
+      if (!(d <= max_d)) continue;
+      const auto& f = suspect_tree.triangle(h.triangle);
+      const Eigen::Vector3d s0 = suspect.points.row(f[0]), s1 = suspect.points.row(f[1]), s2 = suspect.points.row(f[2]);
+      const Eigen::Vector3d normal = (T.rotation * (s1 - s0).cross(s2 - s0)).normalized();
+      if (!normal.allFinite()) continue;
+      add_row({{v, 1.0}}, normal, c);
+    }
+    const int m = static_cast<int>(b.size());
+    SpMat Bn(m, 3 * nr);
+    Bn.setFromTriplets(t.begin(), t.end());
+    const SpMat A = Bn * S3;
+    const Eigen::Map<const Eigen::VectorXd> bv(b.data(), m);
+    SpMat M = SpMat(A.transpose()) * A;
+    // Tangential motion is invisible on a surface: the pull towards the original decides it.
+    // Relative to the data's own weight per unknown, so the pull is a fixed fraction.
+    const double lambda = o.regularization * M.diagonal().mean();
+    SpMat I(n3, n3);
+    I.setIdentity();
+    M += lambda * I;
+    const Eigen::VectorXd rhs = SpMat(A.transpose()) * bv + lambda * x0;
+    Eigen::SimplicialLDLT<SpMat> solver(M);
+    if (solver.info() != Eigen::Success) throw std::runtime_error("resync: surface fit system is singular");
+    const Eigen::VectorXd xv = solver.solve(rhs);
+    for (int a = 0; a < 3; ++a) x.col(a) = xv.segment(a * n, n);
+    // Point-to-plane residual of the solution (the distances it leaves unexplained).
+    residual = std::sqrt((A * xv - bv).squaredNorm() / std::max(1, m));
+  }
+  r.points = x;
+  r.residual_rms = residual / ctx.diagonal;
+  return r;
+}
+
+}  // namespace mm::registration_detail
