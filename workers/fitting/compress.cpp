@@ -68,10 +68,10 @@ constexpr double kReweight = 0.3;
 // fit counts. Measured together with the reweighting over the nine bench parts and seeds 1-3
 // (protect path): fit time 35.4 -> 27.3 s, 5,504 -> 4,798 control vertices, 13,572 -> 12,968
 // bytes, every part within the tolerance; the reweighting alone 4,772 vertices (uncapped) for no
-// less time, coarse rounds alone 5,867 vertices (docs/compression.md, "Reweighted fits").
+// less time, coarse rounds alone 5,867 vertices (git history of docs/compression.md, "Reweighted fits").
 
 // Without coarsening (protect jobs), two savings of fit time for a few bytes, measured together
-// over the nine bench parts and seeds 1-3 (protect path, docs/compression.md, "Fewer rounds and
+// over the nine bench parts and seeds 1-3 (protect path, git history of docs/compression.md, "Fewer rounds and
 // fits on the protect path"): warm rounds fit no rail-quad variant (fit_rounds), and the rounds
 // stop bisecting once the gap is a sixth of the vertices that met the tolerance, not a tenth
 // (kBisectFraction). Fit time 24.89 -> 17.06 s (-31 %), control vertices 4,798 -> 5,152 (+7 %),
@@ -90,7 +90,7 @@ constexpr int kBisectFraction = 6;
 // the coarser surface's, and the bisection rounds down towards them mostly missed again
 // (bracket-3: 82 vertices at 2.6 %, 164 met, then 123 and 143 missed; rocker: 333 at 0.88 %,
 // 443 met, then 388 missed), a full-level fit each. Measured over the nine bench parts and
-// seeds 1-3 (protect path, docs/compression.md, "The first full-level round"): fit time 15.25
+// seeds 1-3 (protect path, git history of docs/compression.md, "The first full-level round"): fit time 15.25
 // -> 12.23 s (-20 %), control vertices 5,152 -> 5,381, stream bytes 13,677 -> 13,861 (+1.3 %),
 // every run within the tolerance, 26 of 27 fits under 1 s (25); a floor of 1.19 with coarse
 // misses bounding the bisection 14.46 s for 13,852 bytes, coarse misses farther than
@@ -377,7 +377,7 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
           // polyhedron then lost its mark in a welded STL copy (docs/compression.md). The caller
           // gives `quads_with` the full iteration count after a warm start too (the quads at 3 in
           // warm rounds, when those had quads: 14,189 bytes over the bench parts and seeds against
-          // 13,859; docs/compression.md, "Warm rounds").
+          // 13,859; git history of docs/compression.md, "Warm rounds").
           met = consider(fit_control_points(quads, target, *quads_with), steer_only);
         }
       }
