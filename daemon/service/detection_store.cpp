@@ -3,10 +3,6 @@
 
 namespace mm::service {
 
-namespace {
-constexpr int kAllCopies = 1000000;
-}
-
 std::vector<jobs::IssuedCopyRecord> StoreForDetection::issued_copies() {
   std::vector<jobs::IssuedCopyRecord> out;
   for (auto& c : st_.list_copies(std::nullopt, kAllCopies)) {

@@ -5,6 +5,9 @@
 
 namespace mm::service {
 
+// The list_copies limit that means every copy (protect's payload uniqueness, detection).
+constexpr int kAllCopies = 1000000;
+
 class StoreForDetection final : public jobs::DetectionStore {
  public:
   explicit StoreForDetection(store::Store& st) : st_(st) {}
