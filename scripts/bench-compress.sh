@@ -6,7 +6,8 @@
 # whose decoded mesh has a Hausdorff distance no larger than ours, measured by the same compare
 # command.
 # Prints a table per mesh and the median size ratio Draco / meshmark, then a table of speed and
-# memory per mesh (the protect jobs' fit path, decompression to level 3); writes fandisk pictures.
+# memory per mesh (the protect jobs' fit path, decompression to level 3); writes fandisk pictures
+# to docs/images/ and the printed tables to docs/results/compress.md.
 #
 # Usage: scripts/bench-compress.sh [OUT_DIR]     (env: MESHMARK=path/to/meshmark, MESHES=dir,
 #        MAX_VERTICES=1000, TOLERANCE=0.005, BITS (default: chosen by compress), LIST="fandisk.off ...",
@@ -14,6 +15,9 @@
 #        seed, and the median over 9 parts by +-0.2, so compare changes over several, e.g. "1 2 3"),
 #        SPEED_RUNS=3 (runs of each protect-path command in the speed table; the least CPU counts))
 set -euo pipefail
+BENCH_ENV="MESHMARK MESHES MAX_VERTICES TOLERANCE BITS LIST SEEDS SPEED_RUNS"
+. "$(dirname "$0")/bench-results.sh"
+bench_results compress "Compression: size against Draco at equal Hausdorff, speed and memory" "$@"
 cd "$(dirname "$0")/.."
 MESHMARK=${MESHMARK:-build/daemon/meshmark}
 MESHES=${MESHES:-../shared/data/meshes}
@@ -287,8 +291,9 @@ fi
 
 # Pictures of fandisk: original, control polyhedron with creases, decoded surface.
 if [ "$SEEDS" = 1 ] && [ -f "$OUT/fandisk.mmc" ] && "$MESHMARK" render --help >/dev/null 2>&1; then
-  "$MESHMARK" render "$MESHES/fandisk.off" "$OUT/fandisk-original.png"
-  "$MESHMARK" render "$OUT/fandisk.mmc" "$OUT/fandisk-control.png" --control
-  "$MESHMARK" render "$OUT/fandisk.mmc" "$OUT/fandisk-decoded.png"
-  echo "pictures: $OUT/fandisk-original.png $OUT/fandisk-control.png $OUT/fandisk-decoded.png"
+  "$MESHMARK" render "$MESHES/fandisk.off" "$OUT/fandisk-original.png" >/dev/null
+  "$MESHMARK" render "$OUT/fandisk.mmc" "$OUT/fandisk-control.png" --control >/dev/null
+  "$MESHMARK" render "$OUT/fandisk.mmc" "$OUT/fandisk-decoded.png" >/dev/null
+  cp "$OUT"/fandisk-original.png "$OUT"/fandisk-control.png "$OUT"/fandisk-decoded.png docs/images/
+  echo "pictures: docs/images/fandisk-original.png docs/images/fandisk-control.png docs/images/fandisk-decoded.png"
 fi

@@ -13,6 +13,9 @@
 # so later runs, with another build or budget, detect the same suspects against the same keys.
 # Each run detects in a fresh copy of that home: WORK_DIR/run-<n>.
 set -euo pipefail
+BENCH_ENV="MESHMARK LOG_LEVEL"
+. "$(dirname "$0")/bench-results.sh"
+bench_results detect-memory "Detection batch: peak memory and verdicts of 35 suspects" "$@"
 here="$(cd "$(dirname "$0")/.." && pwd)"
 MM=$(realpath "${MESHMARK:-$here/build/daemon/meshmark}")
 W=${1:?usage: bench-detect-memory.sh WORK_DIR [context_cache_mb]}

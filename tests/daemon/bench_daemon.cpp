@@ -152,7 +152,7 @@ BENCHMARK(BM_Memory1000)->UseManualTime()->Iterations(1)->Unit(benchmark::kMilli
 }  // namespace
 
 int main(int argc, char** argv) {
-  spdlog::set_level(spdlog::level::warn);  // per-job info lines would swamp the table
+  spdlog::set_level(spdlog::level::err);  // per-job lines and small-part warnings would swamp the table
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();
