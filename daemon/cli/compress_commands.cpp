@@ -104,10 +104,9 @@ void add_compress_commands(CLI::App& app) {
       bool json = false;
       bool snap = true;
       bool fast = false;  // a protect job's compression: one angle, no coarsening, no stream search
-      // 45 and 55 besides the usual 35: a part with many edges between them fits with fewer
-      // vertices when they are smooth (blade, seeds 1-3: 1156-1246 bytes at 35, 874-1000 at
-      // the best of the three; docs/compression.md). Parts whose crease network is the same at
-      // several of them are fitted once per network.
+      // 45 and 55 besides the usual 35: a part with many edges between them (blade) fits with
+      // fewer vertices when they are smooth. Parts whose crease network is the same at several
+      // of them are fitted once per network.
       std::vector<double> angles{35.0, 45.0, 55.0};
       // Tried in turn when none of the default angles meets the tolerance. Not after an
       // explicit --angle: the user chose which edges are creases.

@@ -253,8 +253,8 @@ TEST(Compress, SeedIsHonouredAndDeterministic) {
 // A caller's own measurement (CompressOptions::verify) decides whether a round meets the
 // tolerance: one that rejects everything leaves the tolerance unmet after every round, one that
 // accepts everything changes nothing.
-// verify takes a yes/no answer only: a function returning a distance (what it took before
-// 2026-12-02 15:00) does not compile into one that reads every non-zero distance as "yes".
+// verify takes a yes/no answer only: a function returning a distance does not compile into one
+// that reads every non-zero distance as "yes".
 struct DistanceOfCandidate {
   double operator()(const mm::Mesh&) const { return 0.01; }
 };
@@ -353,10 +353,7 @@ TEST(Compress, RoundsGrowFromTheVerticesTheyHad) {
 // Without coarsening, a round that follows one within 1.5x the tolerance starts from that
 // round's fit and fits 4 times instead of 6; the rounds before it start from the part, and so do
 // all of them when a coarsening follows (compress_rounds with coarsen set). On blade the warm
-// rounds meet the tolerance with fewer control vertices than the cold ones (443 in 4 rounds
-// against 516 in 5 when warm rounds came; docs/compression.md, step 6: 7 % fewer over the bench
-// parts and seeds. With coarse rounds and the reweighted fit, `meshmark compress --no-coarsen`
-// gives 407 in 4).
+// rounds meet the tolerance with fewer control vertices than the cold ones.
 TEST(Compress, RoundsNearTheToleranceStartFromTheLastFit) {
   MM_REQUIRE_SHARED_MESHES();
   const mm::Mesh part = mm::read_mesh(mm::test::shared_mesh("blade.stl"));

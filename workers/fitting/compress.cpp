@@ -33,68 +33,40 @@ void raise_importance(std::vector<double>& importance, const std::vector<double>
     if (error[v] > limit) importance[v] *= 1.0 + 8.0 * std::min(error[v] / limit, 4.0);
 }
 
-// Coarsening, measured over 17 parts (docs/compression.md): fits of 3 iterations from the
-// fitted positions (2 gave streams as small but took as long: more removals missed); the first
-// batch an eighth of the vertices; it ends after 8 single removals that missed (4 left 3 %
-// more bytes). Headroom levels for the stream's candidates: a polyhedron fitted right at the
-// tolerance often needs 2 more bits than one with a tenth to spare.
+// Coarsening: short refits from the fitted positions, a first batch of an eighth of the
+// vertices, and an end after 8 single removals that missed. Candidates at three headroom levels,
+// because a polyhedron right at the tolerance often needs 2 more bits than one with a tenth to
+// spare. Tuned on scripts/bench-compress.sh (stream bytes); the measurements are in git history.
 constexpr int kCoarsenIterations = 3;
 constexpr int kCoarsenTries = 8;
 constexpr int kCoarsenFirstBatch = 8;
 constexpr double kCoarsenLevels[] = {1.0, 0.9, 0.8};
 
 // Warm rounds (without coarsening): a round whose predecessor came within kWarmWithin times the
-// tolerance starts each control vertex that was one in that round (the same input vertex) where
-// that round's better variant put it, and fits kWarmIterations times instead of
-// FitOptions::iterations. Measured over the nine bench parts and seeds 1-3 (protect path): 2,
-// 3, 4 and 6 iterations gave 13,816 / 13,859 / 13,768 / 14,273 bytes in all against 14,437 from
-// the part, 4 the least fit time (-28 %). Far from the tolerance the fit pulls control points
-// far off the part to reach it (abc8's first round at 3.5 %: 9 % of the box), and started there
-// a denser polyhedron stalled (abc8 at 2.4 % with 1000 vertices, 0.57 % from the part at 184).
+// tolerance starts each control vertex where that round's better variant put it and fits
+// kWarmIterations times. Not farther out: there the fit pulls control points far off the part,
+// and a denser polyhedron started there stalls.
 constexpr int kWarmIterations = 4;
 constexpr double kWarmWithin = 1.5;
 
-// The fit's reweighting towards its largest distances (FitOptions::reweight; its cap is
-// fit_control_points.cpp's), without coarsening. Not with coarsening: there its tighter fits
-// needed finer grids, and `meshmark compress`'s median size ratios went 5.73 / 5.63 / 5.07 ->
-// 5.28 / 5.92 / 4.98 at seeds 1-3 (uncapped: 5.33 / 4.85 / 4.92; docs/compression.md).
+// The fit's reweighting towards its largest distances (FitOptions::reweight), without coarsening
+// only: with coarsening its tighter fits needed finer grids and the streams grew.
 constexpr double kReweight = 0.3;
 
 // Coarse rounds (without coarsening): a round that does not start warm -- the first, or one after
 // a round farther than kWarmWithin times the tolerance -- only steers the next one, so it is
-// fitted at one subdivision level fewer, a quarter of the refined vertices to query and a
-// smaller surface to search. Its errors are that coarser surface's; should they come within the
-// tolerance, the round is fitted again at the full level from there (as a warm round) and that
-// fit counts. Measured together with the reweighting over the nine bench parts and seeds 1-3
-// (protect path): fit time 35.4 -> 27.3 s, 5,504 -> 4,798 control vertices, 13,572 -> 12,968
-// bytes, every part within the tolerance; the reweighting alone 4,772 vertices (uncapped) for no
-// less time, coarse rounds alone 5,867 vertices (git history of docs/compression.md, "Reweighted fits").
+// fitted one subdivision level lower (a quarter of the queries). Should it come within the
+// tolerance there, it is fitted again at the full level and that fit counts.
 
-// Without coarsening (protect jobs), two savings of fit time for a few bytes, measured together
-// over the nine bench parts and seeds 1-3 (protect path, git history of docs/compression.md, "Fewer rounds and
-// fits on the protect path"): warm rounds fit no rail-quad variant (fit_rounds), and the rounds
-// stop bisecting once the gap is a sixth of the vertices that met the tolerance, not a tenth
-// (kBisectFraction). Fit time 24.89 -> 17.06 s (-31 %), control vertices 4,798 -> 5,152 (+7 %),
-// stream bytes 12,968 -> 13,677 (+5.5 %), every run within the tolerance; each alone (runs two
-// at a time): -16 % time for +3.3 % bytes (quads), -14 % for +3.6 % (bisection), both -24 %
-// against the same base. More control vertices also give the
-// watermark more coefficients to spread its bits over. With coarsening the rounds are unchanged
-// (it shrinks the polyhedron afterwards; `meshmark compress`'s streams stay byte for byte).
+// Without coarsening (protect jobs): warm rounds fit no rail-quad variant, and the rounds stop
+// bisecting once the gap is a sixth of the vertices that met the tolerance: about a third less
+// fit time for a few percent more bytes (scripts/bench-compress.sh, speed table).
 constexpr int kBisectFraction = 6;
 
 // Into the first full-level round (without coarsening): after a coarse round within kWarmWithin
-// times the tolerance, the vertices grow by at least kFirstWarmGrowth (1.15 otherwise). At 1.15
-// the first full-level round missed in 6 of the 14 such rounds over the bench parts and seeds
-// 1-3, by a little (rocker at 413 vertices 0.52 %, abc6 at 57 0.52-0.61 %, abc8 at 212-214
-// 0.54-0.56 %), and a second full-level fit costs more than the extra vertices. And coarse rounds' misses do not bound the bisection: their errors are
-// the coarser surface's, and the bisection rounds down towards them mostly missed again
-// (bracket-3: 82 vertices at 2.6 %, 164 met, then 123 and 143 missed; rocker: 333 at 0.88 %,
-// 443 met, then 388 missed), a full-level fit each. Measured over the nine bench parts and
-// seeds 1-3 (protect path, git history of docs/compression.md, "The first full-level round"): fit time 15.25
-// -> 12.23 s (-20 %), control vertices 5,152 -> 5,381, stream bytes 13,677 -> 13,861 (+1.3 %),
-// every run within the tolerance, 26 of 27 fits under 1 s (25); a floor of 1.19 with coarse
-// misses bounding the bisection 14.46 s for 13,852 bytes, coarse misses farther than
-// kWarmWithin still bounding it 17.03 s for 13,488.
+// times the tolerance the vertices grow by at least kFirstWarmGrowth, since a second full-level
+// fit costs more than the extra vertices; coarse rounds' misses do not bound the bisection (their
+// errors are the coarser surface's, and rounds bisecting towards them mostly missed again).
 constexpr double kFirstWarmGrowth = 1.25;
 
 // Where a warm round starts its control vertices, per input vertex: the last round's fitted
@@ -372,12 +344,8 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
         Mesh quads = pair_rail_quads(control.mesh);
         if (quads.num_faces() != control.mesh.num_faces()) {
           quads.points = fitted;
-          // 3 iterations instead of 6 gave streams about as small over 17 parts and 3 seeds
-          // (geometric mean 301.7 against 300.1 bytes) in 25 % less fit time, but fandisk_quads'
-          // polyhedron then lost its mark in a welded STL copy (docs/compression.md). The caller
-          // gives `quads_with` the full iteration count after a warm start too (the quads at 3 in
-          // warm rounds, when those had quads: 14,189 bytes over the bench parts and seeds against
-          // 13,859; git history of docs/compression.md, "Warm rounds").
+          // The full iteration count, also after a warm start: fewer left the quads' fits
+          // short (a welded STL copy of fandisk_quads lost its mark).
           met = consider(fit_control_points(quads, target, *quads_with), steer_only);
         }
       }

@@ -52,14 +52,14 @@ struct CompressOptions {
   // Then remove control vertices from the smallest polyhedron that met the tolerance, fitting
   // again after each removal, while it still meets it (fitting/collapse_control.h). Never below
   // the first round's vertex count (about one vertex per patch beyond the corners), which also
-  // keeps the spectral watermark's capacity. Streams 9 % smaller over 17 parts and 3 seeds, for 3-5x the
-  // fit time, so off here and in protect jobs, on in `meshmark compress`.
+  // keeps the spectral watermark's capacity. Smaller streams for 3-5x the fit time, so off here
+  // and in protect jobs, on in `meshmark compress` (scripts/bench-compress.sh measures both).
   // Without it, the rounds' polyhedron is the result, a round that follows one within 1.5x
   // the tolerance starts from that round's fit (warm start, fewer iterations), the others are
   // fitted a subdivision level lower only to steer (coarse rounds), and the fit reweights its
   // correspondences towards the largest distances (FitOptions::reweight); with it, every round
   // starts from the part at the full level with plain least squares, which the coarsening's
-  // streams came out smaller from (docs/compression.md, steps 5 and 6).
+  // streams came out smaller from (docs/compression.md, pipeline steps 5-8).
   bool coarsen = false;
   // The fit's sampling seed. Each seed gives its own deterministic result; which vertex count
   // meets the tolerance varies with it by 10-20 %, so benchmarks compare over several.

@@ -29,14 +29,9 @@ double diagonal_of(const Points& p) {
   return (p.colwise().maxCoeff() - p.colwise().minCoeff()).norm();
 }
 
-// Crease samples along a sharp edge are at least the diagonal / kCreaseSpacing apart: three
-// interior points on an edge three times that long or longer, as before, fewer on shorter ones.
-// A crease tessellated finer is fitted no better for more samples, which weighed its creases
-// over its surfaces and were the largest share of the fit's queries on a finely tessellated
-// part: abc5 (rims of short edges) 10,300 -> 2,740 samples, abc5 split 1:4 20,620 -> 5,500,
-// bracket-3 and abc8 a few fewer, the other shared parts none (git history of docs/compression.md, "Crease
-// samples spaced": the default command's streams 1.4 % smaller, abc5's 14 %; at 1/300, 7 of 9
-// parts changed and the protect path's streams grew 3.9 %).
+// Crease samples along a sharp edge are at least the diagonal / kCreaseSpacing apart: a crease
+// tessellated finer is fitted no better for more samples, which would weigh its creases over its
+// surfaces and dominate the fit's queries on finely tessellated parts.
 constexpr double kCreaseSpacing = 600;
 
 // Target samples: every vertex, area-weighted random points on faces, and points along the

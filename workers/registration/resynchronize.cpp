@@ -311,9 +311,8 @@ Matching match_vertices(const LevelData& level, const Points& suspect, const Res
 // paired, and the residual reported is over all of them. The floor is far below any refined
 // spacing (a swapped pair is off by about one) but above what a stale estimate leaves on right
 // pairs: control points whose pairs are all left out stay at the original's positions, their
-// refined vertices off by the mark, and at 1e-6 (until 2026-12-03) those pairs were left out
-// round after round (blade's issued STL copies: up to a quarter of the pairs; with grow_pairs
-// alone two of four seeded copies still paired inexactly, correlation down to 0.77).
+// refined vertices off by the mark, and a floor at float precision left those pairs out round
+// after round (up to a quarter of the pairs of blade's issued STL copies).
 constexpr double kSwappedPair = 10, kPairFloor = 1e-4;
 
 // The pairs (rows, p) whose residual against `refined` (the estimate's refined vertices) is in
