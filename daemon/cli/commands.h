@@ -35,6 +35,7 @@ void refusing_store_errors(const std::function<void()>& f);
 
 void add_offline_commands(CLI::App& app);  // info, sample, keygen, attack, embed, extract
 void add_mark_commands(CLI::App& app);     // embed, extract (called by add_offline_commands)
+void add_attack_commands(CLI::App& app);   // attack ... (called by add_offline_commands)
 void add_compress_commands(CLI::App& app);  // compress, decompress, compare, render
 void add_run_commands(CLI::App& app);      // submit protect|detect, run --until-empty
 void add_store_commands(CLI::App& app);    // init, customer, jobs, assets, copies, detections

@@ -127,6 +127,40 @@ TEST(CliAttack, NoiseIsSeededAndBoundedSimilarityAndSubdivideDoWhatTheySay) {
   EXPECT_FALSE(exists(s / "x.off"));
 }
 
+// The attacks a leaker's mesh tool makes, each through the command line: what each writes, and
+// the input's name in the errors of those that cannot run.
+TEST(CliAttack, TheBenchmarksAttacksRunFromTheCommandLine) {
+  Scratch s;
+  const std::string part = s / "part.off";
+  ASSERT_EQ(meshmark(s, {"sample", "chamfered_block", part}).code, 0);
+  const Mesh m = read_mesh(part);
+  EXPECT_RUN_OK(meshmark(s, {"attack", "smooth", part, s / "smooth.off", "-n", "10", "--lambda", "0.5"}));
+  EXPECT_EQ(read_mesh(s / "smooth.off").faces, m.faces);
+  EXPECT_RUN_OK(meshmark(s, {"attack", "quantize", part, s / "q.off", "--bits", "8"}));
+  EXPECT_EQ(read_mesh(s / "q.off").faces, m.faces);
+  EXPECT_RUN_OK(meshmark(s, {"attack", "reorder", part, s / "r.off", "--seed", "2"}));
+  EXPECT_EQ(read_mesh(s / "r.off").num_vertices(), m.num_vertices());
+  EXPECT_RUN_OK(meshmark(s, {"attack", "crop", part, s / "c.off", "--keep", "0.5"}));
+  EXPECT_LT(read_mesh(s / "c.off").num_faces(), m.num_faces());
+  EXPECT_RUN_OK(meshmark(s, {"attack", "remesh", part, s / "re.off", "--edge", "0.02"}));
+  EXPECT_LT(surface_distance(m, read_mesh(s / "re.off")).hausdorff_relative(), 0.01);
+  EXPECT_RUN_OK(meshmark(s, {"attack", "simplify", part, s / "si.off", "--keep", "0.3"}));
+  EXPECT_LT(read_mesh(s / "si.off").num_faces(), m.num_faces());
+  EXPECT_RUN_OK(meshmark(s, {"attack", "wrap", part, s / "w.off", "--alpha", "0.02"}));
+  EXPECT_LT(surface_distance(m, read_mesh(s / "w.off")).hausdorff_relative(), 0.02);
+  EXPECT_RUN_OK(meshmark(s, {"attack", "average", part, s / "smooth.off", s / "q.off", s / "avg.off"}));
+  const Mesh avg = read_mesh(s / "avg.off");
+  EXPECT_NEAR(avg.points(5, 1),
+              (m.points(5, 1) + read_mesh(s / "smooth.off").points(5, 1) + read_mesh(s / "q.off").points(5, 1)) / 3, 1e-9);
+
+  const CliRun mismatch = meshmark(s, {"attack", "average", part, s / "c.off", s / "bad.off"});
+  EXPECT_EQ(mismatch.code, 2);
+  EXPECT_NE(mismatch.err.find("c.off"), std::string::npos) << mismatch.err;
+  EXPECT_FALSE(exists(s / "bad.off"));
+  const CliRun range = meshmark(s, {"attack", "smooth", part, s / "x.off", "--lambda", "2"});
+  EXPECT_EQ(range.code, 64);
+}
+
 // Fandisk as the control polyhedron itself (the paper's fandisk_quads experiment).
 TEST(CliMark, FandiskUnattackedExactWrongKeyNullDeterministic) {
   MM_REQUIRE_SHARED_MESHES();
