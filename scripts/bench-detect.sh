@@ -1,0 +1,155 @@
+#!/usr/bin/env bash
+# Robustness benchmark of detection, through the product as a user runs it: the shared CAD parts
+# are protected for three customers by `meshmark run`; one customer's decoded copy of each part
+# (the leaker goes round the three) is attacked with `meshmark attack` at several strengths, and
+# innocent suspects are made from the unmarked originals; every suspect is detected by
+# `meshmark run` and the verdicts are tabled: expected and named customer, -log10 of the corrected
+# p-value, the resynchronisation path. Rewrites docs/results/detect.md.
+#
+# Usage: scripts/bench-detect.sh WORK_DIR
+#   MESHMARK=path/to/meshmark (default build/daemon/meshmark), MESHES=dir,
+#   LIST="fandisk.off bracket-3.stl ..." (default: the nine CAD parts of the compression benchmark),
+#   ATTACKS="none noise-0.001 ..." (default: all below), WORKERS=2.
+# WORK_DIR/setup (home, copies, suspects) is made once and reused; each run detects in a fresh
+# copy of the home (WORK_DIR/run-<n>), so builds are compared on the same copies and suspects.
+set -euo pipefail
+BENCH_ENV="MESHMARK MESHES LIST ATTACKS WORKERS"
+. "$(dirname "$0")/bench-results.sh"
+bench_results detect "Detection after attacks: verdicts over the shared CAD parts" "$@"
+here="$(cd "$(dirname "$0")/.." && pwd)"
+MM=$(realpath "${MESHMARK:-$here/build/daemon/meshmark}")
+MESHES=$(realpath "${MESHES:-$here/../shared/data/meshes}")
+W=${1:?usage: bench-detect.sh WORK_DIR}
+LIST=${LIST:-"fandisk.off bracket-3.stl blade.stl rocker.stl abc5.stl abc6.stl abc7.stl abc8.stl abc9.stl"}
+ALL_ATTACKS="none stream format-stl reorder similarity noise-0.001 noise-0.0025 noise-0.005 quantize-10 quantize-8
+  smooth-5 smooth-10 simplify-0.5 simplify-0.1 remesh-0.01 remesh-0.02 wrap-0.005 crop-0.8 crop-0.5
+  chain-half average-2 average-3"
+ATTACKS=${ATTACKS:-$ALL_ATTACKS}
+WORKERS=${WORKERS:-2}
+customers=(alice bob carol)
+mkdir -p "$W"
+W=$(realpath "$W")
+
+config() {  # config DIR
+  cat >"$1/meshmarkd.json" <<EOF
+{"home": "home", "drop_dir": "drop", "output_dir": "out", "workers": $WORKERS, "log_level": "warn",
+ "output_format": "off"}
+EOF
+}
+
+# attack NAME IN OUT: one named attack of the list above.
+attack() {
+  local name=$1 in=$2 out=$3 kind=${1%%-*} strength=${1#*-}
+  case "$kind" in
+    none) cp "$in" "$out" ;;
+    format) "$MM" attack noise -A 0 "$in" "$out" >/dev/null ;;
+    reorder) "$MM" attack reorder --seed 7 "$in" "$out" >/dev/null ;;
+    similarity) "$MM" attack similarity --scale 25.4 --rotate 30 --shift 0.5 0 0 "$in" "$out" >/dev/null ;;
+    noise) "$MM" attack noise -A "$strength" --seed 3 "$in" "$out" >/dev/null ;;
+    quantize) "$MM" attack quantize --bits "$strength" "$in" "$out" >/dev/null ;;
+    smooth) "$MM" attack smooth -n "$strength" --lambda 0.5 "$in" "$out" >/dev/null ;;
+    simplify) "$MM" attack simplify --keep "$strength" "$in" "$out" >/dev/null ;;
+    remesh) "$MM" attack remesh --edge "$strength" "$in" "$out" >/dev/null ;;
+    wrap) "$MM" attack wrap --alpha "$strength" "$in" "$out" >/dev/null ;;
+    crop) "$MM" attack crop --keep "$strength" "$in" "$out" >/dev/null ;;
+    chain)  # three attacks at half strength: remeshing at 1 %, noise at 0.25 %, simplification to a half
+      "$MM" attack remesh --edge 0.01 "$in" "$out.1.off" >/dev/null
+      "$MM" attack noise -A 0.0025 --seed 4 "$out.1.off" "$out.2.off" >/dev/null
+      "$MM" attack simplify --keep 0.5 "$out.2.off" "$out" >/dev/null
+      rm -f "$out.1.off" "$out.2.off" ;;
+    *) echo "bench-detect: unknown attack $name" >&2; exit 2 ;;
+  esac
+}
+
+if [ ! -f "$W/setup/ready" ]; then
+  rm -rf "$W/setup"
+  S="$W/setup"
+  mkdir -p "$S/drop" "$S/out" "$S/suspects"
+  "$MM" init --home "$S/home" >/dev/null
+  for who in "${customers[@]}"; do "$MM" customer add "$who" --home "$S/home" >/dev/null; done
+  config "$S"
+  for p in $LIST; do
+    for who in "${customers[@]}"; do
+      "$MM" submit protect --config "$S/meshmarkd.json" --customer "$who" "$MESHES/$p" >/dev/null
+    done
+  done
+  (cd "$S" && "$MM" run --until-empty --no-drops --config meshmarkd.json >/dev/null)
+  i=0
+  for p in $LIST; do
+    stem=${p%.*}
+    leaker=${customers[$((i % 3))]} other=${customers[$(((i + 1) % 3))]} third=${customers[$(((i + 2) % 3))]}
+    i=$((i + 1))
+    decoded=$(ls "$S/out/$leaker/$stem"-*.off)
+    for a in $ATTACKS; do
+      out="$S/suspects/$stem--$a--$leaker.off"
+      case "$a" in
+        stream) cp "$(ls "$S/out/$leaker/$stem"-*.mmc)" "${out%.off}.mmc" ;;
+        format-stl) attack "$a" "$decoded" "${out%.off}.stl" ;;
+        average-2) "$MM" attack average "$decoded" "$(ls "$S/out/$other/$stem"-*.off)" \
+                     "$S/suspects/$stem--$a--$leaker+$other.off" >/dev/null ;;
+        average-3) "$MM" attack average "$decoded" "$(ls "$S/out/$other/$stem"-*.off)" \
+                     "$(ls "$S/out/$third/$stem"-*.off)" "$S/suspects/$stem--$a--$leaker+$other+$third.off" >/dev/null ;;
+        *) attack "$a" "$decoded" "$out" ;;
+      esac
+    done
+    # Innocent suspects: the unmarked original, attacked as a leak would be, and another tessellation.
+    orig="$MESHES/$p"
+    "$MM" attack noise -A 0.001 --seed 5 "$orig" "$S/suspects/$stem--innocent-noise--nobody.off" >/dev/null
+    "$MM" attack remesh --edge 0.01 "$orig" "$S/suspects/$stem--innocent-remesh--nobody.off" >/dev/null
+    "$MM" attack smooth -n 10 "$orig" "$S/suspects/$stem--innocent-smooth--nobody.off" >/dev/null
+    "$MM" attack subdivide --linear -L 1 "$orig" "$S/suspects/$stem--innocent-split--nobody.off" >/dev/null
+  done
+  touch "$S/ready"
+fi
+
+n=1
+while [ -e "$W/run-$n" ]; do n=$((n + 1)); done
+R="$W/run-$n"
+mkdir -p "$R/drop" "$R/out"
+cp -a "$W/setup/home" "$R/home"
+config "$R"
+(cd "$R" && "$MM" submit detect --config meshmarkd.json "$W/setup/suspects"/* >/dev/null)
+/usr/bin/time -f "%e %U %M" -o "$R/time" bash -c "cd '$R' && '$MM' run --until-empty --no-drops --config meshmarkd.json" \
+  >"$R/run.txt" 2>"$R/run.log" || true
+"$MM" detections --home "$R/home" --json --limit 100000 >"$R/detections.json"
+"$MM" jobs list --home "$R/home" --kind detect --json --limit 100000 >"$R/jobs.json"
+read -r wall user rss <"$R/time"
+echo "run $R: $(cat "$R/run.txt")"
+echo "detect jobs: wall ${wall} s, CPU user ${user} s, peak RSS $((rss / 1024)) MB, $WORKERS workers"
+python3 - "$R" "$W/setup/home" "$MM" <<'PY'
+import json, subprocess, sys, collections
+run, home, mm = sys.argv[1:4]
+dets = json.load(open(run + "/detections.json"))
+customers = {c["id"]: c["name"] for c in json.loads(subprocess.check_output([mm, "customer", "list", "--home", home, "--json"]))}
+rows = []
+for d in dets:
+    stem, attack, truth = d["suspect_name"].rsplit(".", 1)[0].split("--")
+    expected = set(truth.split("+")) - {"nobody"}
+    named = customers.get(d.get("customer_id")) if d["verdict"] == "attributed" else None
+    p = d["details"].get("best_neg_log10_corrected_p", 0)
+    if named is None and not expected: outcome = "ok"
+    elif named is None: outcome = "missed"
+    elif named in expected: outcome = "traced"
+    else: outcome = "WRONG"
+    rows.append((stem, attack, truth, d["verdict"], named or "-", p, d.get("resync_method") or "-", outcome))
+rows.sort()
+print("%-10s %-18s %-18s %-18s %-6s %9s %-12s %s" % ("part", "attack", "leaker", "verdict", "named", "-log10p", "resync", "outcome"))
+for r in rows:
+    print("%-10s %-18s %-18s %-18s %-6s %9.1f %-12s %s" % r)
+by = collections.OrderedDict()
+for r in rows:
+    by.setdefault(r[1], []).append(r)
+print()
+print("%-18s %7s %6s %6s  %s" % ("attack", "traced", "wrong", "tried", "median -log10 p"))
+for a, rs in sorted(by.items()):
+    traced = sum(r[7] == "traced" for r in rs)
+    wrong = sum(r[7] == "WRONG" for r in rs)
+    ps = sorted(r[5] for r in rs)
+    print("%-18s %7d %6d %6d  %.1f" % (a, traced, wrong, len(rs), ps[len(ps) // 2]))
+leaks = [r for r in rows if r[2] != "nobody"]
+innocent = [r for r in rows if r[2] == "nobody"]
+print()
+print("traced %d of %d leaks; wrong customers %d; innocent suspects attributed %d of %d" % (
+    sum(r[7] == "traced" for r in leaks), len(leaks), sum(r[7] == "WRONG" for r in rows),
+    sum(r[4] != "-" for r in innocent), len(innocent)))
+PY
