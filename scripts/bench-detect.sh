@@ -125,17 +125,18 @@ rows = []
 for d in dets:
     stem, attack, truth = d["suspect_name"].rsplit(".", 1)[0].split("--")
     expected = set(truth.split("+")) - {"nobody"}
-    named = customers.get(d.get("customer_id")) if d["verdict"] == "attributed" else None
+    named = {customers.get(a["customer_id"]) for a in d["details"].get("attributed", [])}
     p = d["details"].get("best_neg_log10_corrected_p", 0)
-    if named is None and not expected: outcome = "ok"
-    elif named is None: outcome = "missed"
-    elif named in expected: outcome = "traced"
-    else: outcome = "WRONG"
-    rows.append((stem, attack, truth, d["verdict"], named or "-", p, d.get("resync_method") or "-", outcome))
+    if named - expected: outcome = "WRONG"
+    elif not named and not expected: outcome = "ok"
+    elif not named: outcome = "missed"
+    elif named == expected: outcome = "traced"
+    else: outcome = "partial"
+    rows.append((stem, attack, truth, d["verdict"], "+".join(sorted(named)) or "-", p, d.get("resync_method") or "-", outcome))
 rows.sort()
-print("%-10s %-18s %-18s %-18s %-6s %9s %-12s %s" % ("part", "attack", "leaker", "verdict", "named", "-log10p", "resync", "outcome"))
+print("%-10s %-18s %-18s %-18s %-18s %9s %-12s %s" % ("part", "attack", "leaker", "verdict", "named", "-log10p", "resync", "outcome"))
 for r in rows:
-    print("%-10s %-18s %-18s %-18s %-6s %9.1f %-12s %s" % r)
+    print("%-10s %-18s %-18s %-18s %-18s %9.1f %-12s %s" % r)
 by = collections.OrderedDict()
 for r in rows:
     by.setdefault(r[1], []).append(r)
@@ -149,7 +150,7 @@ for a, rs in sorted(by.items()):
 leaks = [r for r in rows if r[2] != "nobody"]
 innocent = [r for r in rows if r[2] == "nobody"]
 print()
-print("traced %d of %d leaks; wrong customers %d; innocent suspects attributed %d of %d" % (
+print("traced %d of %d leaks (every leaker named, no one else); wrong customers %d; innocent suspects attributed %d of %d" % (
     sum(r[7] == "traced" for r in leaks), len(leaks), sum(r[7] == "WRONG" for r in rows),
     sum(r[4] != "-" for r in innocent), len(innocent)))
 PY

@@ -40,7 +40,7 @@ struct Config {
   // compression.fallback_angles: tried in turn when compression.angle misses the tolerance
   // (jobs::PrepareParams::fallback_angles).
   std::vector<double> fallback_angles = fallback_crease_angles();
-  double p_threshold = 1e-6;
+  double p_threshold = 1e-9;
   int max_candidates = 3;
   // detect.context_cache_mb: resynchronisation contexts kept between detect jobs, shared by the
   // workers (service/context_cache.h); contexts in use are never evicted.

@@ -343,6 +343,9 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
                               {"compared", s.compared},
                               {"binomial_neg_log10_p", s.binomial_neg_log10_p},
                               {"calibrated_neg_log10_p", s.calibrated_neg_log10_p},
+                              {"sign_neg_log10_p", s.sign_neg_log10_p},
+                              {"matched_statistic", s.matched_statistic},
+                              {"matched_neg_log10_p", s.matched_neg_log10_p},
                               {"null_mean", s.null_mean},
                               {"null_sd", s.null_sd},
                               {"payload_matches", s.payload_matches},
@@ -358,12 +361,22 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
     details["best_binomial_p"] = best.binomial_p;
     details["best_calibrated_p"] = best.calibrated_p;
     details["best_null_sd"] = best.null_sd;
+    details["best_sign_neg_log10_p"] = best.sign_neg_log10_p;
+    details["best_matched_neg_log10_p"] = best.matched_neg_log10_p;
     details["resync_method"] = best_t->alignment.method;
     details["resync_residual"] = best_t->alignment.residual;
     d.resync_method = best_t->alignment.method;
     if (std::isfinite(best_t->alignment.residual)) d.resync_residual = best_t->alignment.residual;
     details["best_copy_id"] = best.copy_id;
   }
+  json attributed = json::array();
+  for (const auto& a : det.attributed) {
+    json aj{{"copy_id", a.copy_id}, {"customer_id", a.customer_id}, {"corrected_p", a.corrected_p},
+            {"neg_log10_corrected_p", a.neg_log10_corrected_p}};
+    if (auto c = st.get_customer(a.customer_id)) aj["customer"] = c->name;
+    attributed.push_back(aj);
+  }
+  details["attributed"] = attributed;
   d.details_json = details.dump();
 
   store::JobRecords rec;
@@ -378,10 +391,12 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
     result["customer_id"] = *d.customer_id;
     if (auto c = st.get_customer(*d.customer_id)) result["customer"] = c->name;
   }
+  if (!attributed.empty()) result["attributed"] = attributed;
   if (d.p_value) result["p_value"] = *d.p_value;
   if (details.contains("best_neg_log10_corrected_p")) result["neg_log10_p"] = details["best_neg_log10_corrected_p"];
   if (d.correlation) result["correlation"] = *d.correlation;
-  for (const char* k : {"best_binomial_p", "best_calibrated_p", "best_null_sd"})
+  for (const char* k : {"best_binomial_p", "best_calibrated_p", "best_null_sd", "best_sign_neg_log10_p",
+                        "best_matched_neg_log10_p"})
     if (details.contains(k)) result[std::string(k).substr(5)] = details[k];
   if (!d.decoded_payload_hex.empty()) result["decoded_payload"] = d.decoded_payload_hex;
   if (best_t) {

@@ -36,7 +36,7 @@ TEST_F(ConfigTest, MinimalConfigGetsDefaultsAndResolvesRelativePaths) {
   EXPECT_EQ(c.home, (dir / "home").string());
   EXPECT_EQ(c.drop_dir, (dir / "drop").string());
   EXPECT_EQ(c.workers, 2);
-  EXPECT_EQ(c.p_threshold, 1e-6);
+  EXPECT_EQ(c.p_threshold, 1e-9);
   EXPECT_EQ(c.watermark.message_bits, 32);
   EXPECT_EQ(c.context_cache_mb, 512);
   EXPECT_TRUE(c.compression.rail_quads);

@@ -242,14 +242,17 @@ TEST_F(ProtectDetect, UnmarkedOriginalAndForeignPartAreNotAttributed) {
   }
 }
 
-TEST_F(ProtectDetect, WrongPayloadOrWrongKeyIsNotAttributed) {
+TEST_F(ProtectDetect, WrongKeyIsNotAttributedAWrongPayloadIsReported) {
   const Mesh& c = fx->files[2].decoded;
-  // Right key and nonce but a record claiming another payload: the payload check refuses.
+  // Right key and nonce but a record claiming another payload (2 bits differ): the copy's key
+  // stream is in the suspect, so the copy is named, and the payload check reports the 2 bits.
   auto lying = fx->copies;
   lying[2].payload ^= 0x5;
   Verdict v = detect(c, nullptr, &lying);
-  EXPECT_FALSE(v.attributed);
+  EXPECT_TRUE(v.attributed);
+  EXPECT_EQ(v.best.copy_id, lying[2].copy_id);
   EXPECT_FALSE(v.best.payload_matches);
+  EXPECT_DOUBLE_EQ(v.best.bit_error_rate * lying[2].settings.message_bits, 2.0);
   // Only other customers' keys on record: nothing passes.
   std::vector<CopyCandidate> others = {fx->copies[0], fx->copies[1]};
   v = detect(c, nullptr, &others);
@@ -288,8 +291,12 @@ TEST_F(ProtectDetect, CalibratedPValueOfUnmarkedAndRetessellatedSurfaces) {
     EXPECT_FALSE(v.attributed);
     for (const auto& s : v.scores) {
       calibrated.push_back(s.calibrated_p);
-      EXPECT_GE(s.p_value, s.calibrated_p);
-      EXPECT_GE(s.p_value, s.binomial_p);
+      // The verdict's p: twice the smaller of the sign count's (the larger of its two) and the
+      // matched score's, which is a bound (Hoeffding) and never near an attribution here.
+      const double sign_p = std::max(s.binomial_p, s.calibrated_p);
+      const double matched_p = std::pow(10.0, -s.matched_neg_log10_p);
+      EXPECT_NEAR(s.p_value, std::min(1.0, 2 * std::min(sign_p, matched_p)), 1e-12 + 1e-9 * s.p_value);
+      EXPECT_GT(matched_p, 1e-4) << "copy " << s.copy_id;
     }
   }
   ASSERT_EQ(calibrated.size(), 36u);
@@ -369,20 +376,20 @@ TEST(NullCalibration, NormalTailMatchesClosedFormsAndSurvivesUnderflow) {
 }  // namespace
 }  // namespace mm::jobs
 
-// One rule for every verdict (daemon, extract, detect_copy): a mark and its payload name the copy;
-// either alone is inconclusive with a reason that says which half is missing; neither is absent.
-TEST(Finding, MarkAndPayloadTogetherNameACopyEitherAloneIsInconclusive) {
+// One rule for every verdict (daemon, extract, detect_copy): a mark below the threshold names the
+// copy whatever its payload decodes to; a payload decoded whole without such a mark is
+// inconclusive, with a reason; neither is absent.
+TEST(Finding, TheMarkNamesTheCopyAPayloadAloneIsInconclusive) {
   using mm::jobs::Finding;
-  EXPECT_EQ(mm::jobs::finding_of(1e-9, 1e-6, true), Finding::present);
-  EXPECT_EQ(mm::jobs::finding_of(1e-9, 1e-6, false), Finding::inconclusive);
-  EXPECT_EQ(mm::jobs::finding_of(1e-3, 1e-6, true), Finding::inconclusive);
-  EXPECT_EQ(mm::jobs::finding_of(1e-3, 1e-6, false), Finding::absent);
+  EXPECT_EQ(mm::jobs::finding_of(1e-12, 1e-9, true), Finding::present);
+  EXPECT_EQ(mm::jobs::finding_of(1e-12, 1e-9, false), Finding::present);
+  EXPECT_EQ(mm::jobs::finding_of(1e-3, 1e-9, true), Finding::inconclusive);
+  EXPECT_EQ(mm::jobs::finding_of(1e-3, 1e-9, false), Finding::absent);
   // The threshold is strict: a p equal to it is not a mark.
-  EXPECT_EQ(mm::jobs::finding_of(1e-6, 1e-6, true), Finding::inconclusive);
-  EXPECT_EQ(mm::jobs::inconclusive_reason("copy 4", "corrected p", 1.26e-24, 1e-6, 1, 32),
-            "copy 4's mark matches (corrected p 1.26e-24) but its payload decoded with 1 of 32 bits wrong");
-  EXPECT_EQ(mm::jobs::inconclusive_reason("the copy", "p", 0.00321, 1e-6, 0, 24),
-            "the copy's payload decoded whole but its mark's p 0.00321 is not below 1e-06");
-  EXPECT_EQ(mm::jobs::inconclusive_reason("copy 4", "corrected p", 1e-9, 1e-6, 0, 32), "");
-  EXPECT_EQ(mm::jobs::inconclusive_reason("copy 4", "corrected p", 0.5, 1e-6, 7, 32), "");
+  EXPECT_EQ(mm::jobs::finding_of(1e-9, 1e-9, true), Finding::inconclusive);
+  EXPECT_EQ(mm::jobs::inconclusive_reason("the copy", "p", 0.00321, 1e-9, true),
+            "the copy's payload decoded whole but its mark's p 0.00321 is not below 1e-09");
+  EXPECT_EQ(mm::jobs::inconclusive_reason("copy 4", "corrected p", 1e-12, 1e-9, false), "");
+  EXPECT_EQ(mm::jobs::inconclusive_reason("copy 4", "corrected p", 1e-12, 1e-9, true), "");
+  EXPECT_EQ(mm::jobs::inconclusive_reason("copy 4", "corrected p", 0.5, 1e-9, false), "");
 }

@@ -1,6 +1,7 @@
 #include "jobs/detect.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include <Eigen/SparseCholesky>
@@ -56,9 +57,8 @@ Resynchronized resynchronize_suspect(const ResyncContext& context, const Mesh& s
 }
 
 Finding finding_of(double p, double p_threshold, bool payload_matches) {
-  const bool mark = p < p_threshold;
-  if (mark && payload_matches) return Finding::present;
-  if (mark || payload_matches) return Finding::inconclusive;
+  if (p < p_threshold) return Finding::present;
+  if (payload_matches) return Finding::inconclusive;
   return Finding::absent;
 }
 
@@ -71,19 +71,23 @@ std::string three_digits(double x) {
 }  // namespace
 
 std::string inconclusive_reason(const std::string& what, const std::string& p_name, double p, double p_threshold,
-                                int wrong_bits, int bits) {
-  const bool matches = wrong_bits == 0;
-  if (finding_of(p, p_threshold, matches) != Finding::inconclusive) return {};
-  if (matches)
-    return what + "'s payload decoded whole but its mark's " + p_name + " " + three_digits(p) + " is not below " +
-           three_digits(p_threshold);
-  return what + "'s mark matches (" + p_name + " " + three_digits(p) + ") but its payload decoded with " +
-         std::to_string(wrong_bits) + " of " + std::to_string(bits) + " bits wrong";
+                                bool payload_matches) {
+  if (finding_of(p, p_threshold, payload_matches) != Finding::inconclusive) return {};
+  return what + "'s payload decoded whole but its mark's " + p_name + " " + three_digits(p) + " is not below " +
+         three_digits(p_threshold);
 }
 
 MarkP verdict_p(const Extraction& e, const NullCalibration& cal) {
   if (e.neg_log10_p <= cal.neg_log10_p) return {e.p_value, e.neg_log10_p};
   return {cal.p, cal.neg_log10_p};
+}
+
+MarkP combined_p(const MarkP& sign, const MatchedScore& matched) {
+  const double best = std::max(sign.neg_log10_p, matched.neg_log10_p);
+  MarkP out;
+  out.neg_log10_p = std::max(0.0, best - std::log10(2.0));
+  out.p = std::min(1.0, 2 * std::min(sign.p, matched.p));
+  return out;
 }
 
 double corrected_p(double p, int copies_tried) {
@@ -98,7 +102,18 @@ bool better_copy(const CopyScore& a, const CopyScore& b) {
 std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,
                                     const std::vector<CopyCandidate>& copies) {
   std::vector<CopyScore> scores;
+  // The matched score's evidence depends on the suspect and the copies' settings, not on keys.
+  CoefficientEvidence evidence;
+  const WatermarkSettings* evidence_for = nullptr;
   for (const auto& c : copies) {
+    if (!evidence_for || evidence_for->message_bits != c.settings.message_bits ||
+        evidence_for->params.method != c.settings.params.method ||
+        evidence_for->params.strength != c.settings.params.strength ||
+        evidence_for->params.threshold != c.settings.params.threshold) {
+      evidence = coefficient_evidence(asset.basis, asset.control.points, registered, c.settings.message_bits,
+                                      c.settings.params);
+      evidence_for = &c.settings;
+    }
     Extraction e = extract(asset.basis, asset.control.points, registered, c.settings.message_bits,
                            c.key, c.nonce, c.settings.params);
     CopyScore s;
@@ -112,15 +127,23 @@ std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& re
     s.calibrated_neg_log10_p = cal.neg_log10_p;
     s.null_mean = cal.mean;
     s.null_sd = cal.sd;
-    const MarkP mp = verdict_p(e, cal);
+    const MarkP sign = verdict_p(e, cal);
+    s.sign_neg_log10_p = sign.neg_log10_p;
+    const std::vector<bool> expected = payload_to_bits(c.payload, c.settings.message_bits);
+    const MatchedScore matched =
+        matched_score(evidence, c.key, c.nonce, expected, usable_coefficients(asset.basis));
+    s.matched_statistic = matched.statistic;
+    s.matched_neg_log10_p = matched.neg_log10_p;
+    const MarkP mp = combined_p(sign, matched);
     s.p_value = mp.p;
     s.neg_log10_p = mp.neg_log10_p;
     s.corrected_p = s.p_value;
-    s.decoded_payload = bits_to_payload(e.message);
+    // The payload as the stronger statistic decodes it.
+    const std::vector<bool>& decoded = matched.neg_log10_p > sign.neg_log10_p ? matched.message : e.message;
+    s.decoded_payload = bits_to_payload(decoded);
     s.payload_matches = s.decoded_payload == c.payload;
-    std::vector<bool> expected = payload_to_bits(c.payload, c.settings.message_bits);
     int wrong = 0;
-    for (std::size_t i = 0; i < expected.size() && i < e.message.size(); ++i) wrong += expected[i] != e.message[i];
+    for (std::size_t i = 0; i < expected.size() && i < decoded.size(); ++i) wrong += expected[i] != decoded[i];
     s.bit_error_rate = expected.empty() ? 0.0 : static_cast<double>(wrong) / static_cast<double>(expected.size());
     scores.push_back(s);
   }

@@ -5,10 +5,13 @@
 // the message decoded with that copy's key equals that copy's payload. An unmarked or foreign
 // mesh has no reason to pass either test, so it is never attributed.
 //
-// Each copy's p-value is the larger of two: the exact tail of extract() (the binomial model:
-// chance signs independent and fair) and an empirically calibrated one (calibrate_null(): the
-// same statistic against kNullSequences public sequences unrelated to any copy, upper normal tail
-// of (correlation - null mean) / null sd). Both are kept, so the evidence states which one bound.
+// Each copy gets two statistics. The sign count's p-value is the larger of two: the exact tail
+// of extract() (the binomial model: chance signs independent and fair) and an empirically
+// calibrated one (calibrate_null(): the same statistic against kNullSequences public sequences
+// unrelated to any copy). The matched score (watermark/matched_score.h) weighs each coefficient
+// by how far it moved against what the attack and the noise explain, with Hoeffding's
+// distribution-free bound. The copy's p-value is the smaller of the two, doubled (Bonferroni over
+// the two statistics). All of them are kept, so the evidence states which one bound.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -16,6 +19,7 @@
 
 #include "jobs/protect.h"
 #include "registration/resynchronize.h"
+#include "watermark/matched_score.h"
 #include "watermark/null_calibration.h"
 
 namespace mm::jobs {
@@ -32,12 +36,14 @@ struct CopyScore {
   std::int64_t copy_id = 0;
   double correlation = 0;
   int compared = 0;      // coefficient signs compared (m)
-  double p_value = 1;    // raw: max(binomial_p, calibrated_p)
+  double p_value = 1;    // raw: combined_p of the sign count's and the matched score's
   double corrected_p = 1;  // min(1, p * copies tried)
   double neg_log10_p = 0;  // -log10 of the raw p-value, meaningful where p underflows to 0
   double binomial_p = 1, binomial_neg_log10_p = 0;      // extract()'s exact tail
   double calibrated_p = 1, calibrated_neg_log10_p = 0;  // the empirical-null normal tail
   double null_mean = 0, null_sd = 0;  // of the correlation over the null sequences
+  double sign_neg_log10_p = 0;        // the sign count's: the smaller of the two above
+  double matched_statistic = 0, matched_neg_log10_p = 0;  // matched_score()
   std::uint64_t decoded_payload = 0;
   bool payload_matches = false;
   double bit_error_rate = 0;
@@ -66,18 +72,19 @@ Resynchronized resynchronize_suspect(const ResyncContext& context, const Mesh& s
                                      const ResyncOptions& options = {});
 
 // What a copy's score says: the one rule behind every verdict (detect_copy's `attributed`, the
-// daemon's detect jobs, `meshmark extract`). Present: its mark matches (p below the threshold)
-// and its payload decodes whole. Inconclusive: one of the two without the other -- a mark whose
-// payload lost bits (a damaged copy), or a payload without a significant mark -- which names no
-// customer and does not say "no watermark" either, the opposite of half the evidence. Absent:
-// neither.
+// daemon's detect jobs, `meshmark extract`). Present: its mark matches, p below the threshold.
+// The p-values are exact under the null (the copy's key stream is fair and independent of a
+// suspect made without it), so the mark alone is the evidence; the payload is decoded and its
+// wrong bits reported beside it (an attack damages some bits long before the mark fades).
+// Inconclusive: the payload decodes whole while p is not below the threshold, which names no
+// customer and does not say "no watermark" either. Absent: neither.
 enum class Finding { present, inconclusive, absent };
 Finding finding_of(double p, double p_threshold, bool payload_matches);
-// Why a finding is inconclusive, for a report: "copy 4's mark matches (corrected p 1.26e-24) but
-// its payload decoded with 1 of 32 bits wrong" (`what` "copy 4", `p_name` "corrected p"). Empty
-// for the other findings.
+// Why a finding is inconclusive, for a report: "copy 4's payload decoded whole but its mark's
+// corrected p 3.55e-15 is not below 1e-300" (`what` "copy 4", `p_name` "corrected p"). Empty for
+// the other findings.
 std::string inconclusive_reason(const std::string& what, const std::string& p_name, double p, double p_threshold,
-                                int wrong_bits, int bits);
+                                bool payload_matches);
 
 // A mark's p-value for the verdict: the more conservative of extract()'s exact tail and the
 // empirical-null tail, compared in -log10 (which survives underflow).
@@ -86,6 +93,8 @@ struct MarkP {
   double neg_log10_p = 0;
 };
 MarkP verdict_p(const Extraction& extraction, const NullCalibration& calibration);
+// The copy's p from both statistics: 2 min(sign p, matched p), in -log10 too.
+MarkP combined_p(const MarkP& sign, const MatchedScore& matched);
 
 // Each copy's score of a suspect resynchronised to asset.control (resynchronize(...).points),
 // uncorrected (corrected_p = p_value), in input order.

@@ -121,7 +121,6 @@ void decide(Detection& d, double p_threshold) {
   for (const auto& c : where.copies)
     if (c.id == best.copy_id) {
       bits = static_cast<int>(c.payload_hex.size()) * 4;
-      const int wrong = static_cast<int>(std::lround(best.bit_error_rate * bits));
       switch (finding_of(best.corrected_p, p_threshold, best.payload_matches)) {
         case Finding::present:
           d.verdict = "attributed";
@@ -131,13 +130,25 @@ void decide(Detection& d, double p_threshold) {
         case Finding::inconclusive:
           d.verdict = "inconclusive";
           d.reason = inconclusive_reason("copy " + std::to_string(c.id), "corrected p", best.corrected_p,
-                                         p_threshold, wrong, bits);
+                                         p_threshold, best.payload_matches);
           break;
         case Finding::absent:
           break;
       }
     }
   d.decoded_payload_hex = payload_hex(best.decoded_payload, bits);
+  if (d.verdict == "attributed")
+    for (const auto& t : d.tried)
+      for (const auto& s : t.scores)
+        if (s.corrected_p < p_threshold)
+          for (const auto& c : t.copies)
+            if (c.id == s.copy_id)
+              d.attributed.push_back({c.id, c.customer_id, s.corrected_p,
+                                      std::max(0.0, s.neg_log10_p - std::log10(std::max(1, d.copies_tried)))});
+  std::stable_sort(d.attributed.begin(), d.attributed.end(),
+                   [](const Detection::Attributed& a, const Detection::Attributed& b) {
+                     return a.neg_log10_corrected_p > b.neg_log10_corrected_p;
+                   });
   if (d.verdict.empty()) d.verdict = "no watermark found";
 }
 

@@ -62,7 +62,7 @@ using ContextSource = std::function<std::shared_ptr<const ResyncContext>(
     const std::string& polyhedron_blob, const std::function<ResyncContext()>& build)>;
 
 struct DetectOptions {
-  double p_threshold = 1e-6;
+  double p_threshold = 1e-9;
   int max_candidates = 3;
   ContextSource contexts;  // empty: a context built for each use
 };
@@ -102,7 +102,14 @@ struct Detection {
   std::vector<std::int64_t> candidates;
   int copies_tried = 0;
   std::vector<PolyhedronTried> tried;
-  std::optional<std::int64_t> asset_id, copy_id, customer_id;
+  std::optional<std::int64_t> asset_id, copy_id, customer_id;  // the best copy's, when attributed
+  // Every copy whose corrected p is below the threshold, best first: several when copies were
+  // averaged (collusion). Each p is exact on its own key stream, so each names its customer.
+  struct Attributed {
+    std::int64_t copy_id = 0, customer_id = 0;
+    double corrected_p = 1, neg_log10_corrected_p = 0;
+  };
+  std::vector<Attributed> attributed;
   // The best copy, when any copy was scored.
   std::optional<CopyScore> best;
   int best_tried = -1;  // index into `tried`
