@@ -335,6 +335,7 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
             {"resync_level", t.alignment.level},
             {"resync_residual", std::isfinite(t.alignment.residual) ? t.alignment.residual : -1.0},
             {"matched_fraction", t.alignment.matched_fraction},
+            {"attack_model", t.alignment.attack_model},
             {"copies", json::array()}};
     for (const auto& s : t.scores)
       cj["copies"].push_back({{"copy_id", s.copy_id},

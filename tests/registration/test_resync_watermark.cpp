@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <random>
 
+#include "attacks/perturb.h"
 #include "codec/stream.h"
 #include "common/shared_meshes.h"
 #include "common/temp_dir.h"
@@ -110,6 +111,38 @@ TEST(ResyncWatermark, SubdividedNoisyCopyIsDetected) {
   report("unmarked, subdivided 3, noise", r, y);
   EXPECT_GT(y.p_value, 0.01);
   EXPECT_LT(std::abs(y.correlation), 0.1);
+}
+
+// A decoded copy smoothed 10 times (umbrella, lambda 0.5): every sign turns one way, so without
+// the model nothing is found; with the smoothing modelled from the original and taken out, the
+// mark as the smoothing left it is found, and the model is recorded. An unmarked copy smoothed the
+// same way still shows nothing.
+TEST(ResyncWatermark, SmoothedCopyIsDetectedThroughTheModelledSmoothing) {
+  MM_REQUIRE_SHARED_MESHES();
+  ASSERT_GE(sodium_init(), 0);
+  const Fixture& f = fixture();
+  Mesh suspect = subdivide(f.marked, 2);
+  attacks::smooth_laplacian(suspect, 10, 0.5);
+  Resynchronized r;
+  ResyncOptions plain;
+  plain.model_smoothing = false;
+  const Extraction without = detect(suspect, &r, plain);
+  report("subdivided 2, smoothed 10 x 0.5, no model", r, without);
+  EXPECT_TRUE(r.attack_model.empty());
+  EXPECT_GT(without.p_value, 1e-3);
+  const Extraction with = detect(suspect, &r);
+  report("subdivided 2, smoothed 10 x 0.5, modelled", r, with);
+  EXPECT_EQ(r.method, "subdivided");
+  // Smoothing at lambda 0.25 twice as often is about the same low-pass: either may explain it.
+  EXPECT_EQ(r.attack_model.rfind("umbrella smoothing, lambda ", 0), 0u) << r.attack_model;
+  EXPECT_LT(with.p_value, 1e-30);
+
+  Mesh clean = subdivide(f.control, 2);
+  attacks::smooth_laplacian(clean, 10, 0.5);
+  const Extraction y = detect(clean, &r);
+  report("unmarked, subdivided 2, smoothed", r, y);
+  EXPECT_FALSE(r.attack_model.empty());
+  EXPECT_GT(y.p_value, 0.01);
 }
 
 TEST(ResyncWatermark, ResubdividedDecodedCopyIsDetected) {

@@ -61,26 +61,37 @@ void quantize_coordinates(Points& points, int bits) {
     }
 }
 
+UmbrellaSmoother::UmbrellaSmoother(const Mesh& connectivity)
+    : offsets_(static_cast<std::size_t>(connectivity.num_vertices()) + 1, 0) {
+  const auto edges = unique_edges(connectivity);
+  for (const auto& [i, j] : edges) ++offsets_[static_cast<std::size_t>(i) + 1], ++offsets_[static_cast<std::size_t>(j) + 1];
+  for (std::size_t v = 1; v < offsets_.size(); ++v) offsets_[v] += offsets_[v - 1];
+  neighbours_.resize(static_cast<std::size_t>(offsets_.back()));
+  std::vector<int> fill(offsets_.begin(), offsets_.end() - 1);
+  for (const auto& [i, j] : edges) {
+    neighbours_[static_cast<std::size_t>(fill[static_cast<std::size_t>(i)]++)] = j;
+    neighbours_[static_cast<std::size_t>(fill[static_cast<std::size_t>(j)]++)] = i;
+  }
+}
+
+void UmbrellaSmoother::step(Points& points, double lambda) const {
+  Points next = points;
+  for (Eigen::Index v = 0; v + 1 < static_cast<Eigen::Index>(offsets_.size()); ++v) {
+    const int begin = offsets_[static_cast<std::size_t>(v)], end = offsets_[static_cast<std::size_t>(v) + 1];
+    if (begin == end) continue;
+    Eigen::RowVector3d mean = Eigen::RowVector3d::Zero();
+    for (int k = begin; k < end; ++k) mean += points.row(neighbours_[static_cast<std::size_t>(k)]);
+    mean /= static_cast<double>(end - begin);
+    next.row(v) = points.row(v) + lambda * (mean - points.row(v));
+  }
+  points = std::move(next);
+}
+
 void smooth_laplacian(Mesh& mesh, int iterations, double lambda) {
   if (!(lambda > 0 && lambda <= 1) || iterations < 0)
     throw std::invalid_argument("smooth_laplacian: lambda outside (0, 1] or negative iterations");
-  std::vector<std::vector<int>> neighbours(static_cast<std::size_t>(mesh.num_vertices()));
-  for (const auto& [i, j] : unique_edges(mesh)) {
-    neighbours[static_cast<std::size_t>(i)].push_back(j);
-    neighbours[static_cast<std::size_t>(j)].push_back(i);
-  }
-  Points next = mesh.points;
-  for (int it = 0; it < iterations; ++it) {
-    for (int v = 0; v < mesh.num_vertices(); ++v) {
-      const auto& around = neighbours[static_cast<std::size_t>(v)];
-      if (around.empty()) continue;
-      Eigen::RowVector3d mean = Eigen::RowVector3d::Zero();
-      for (int u : around) mean += mesh.points.row(u);
-      mean /= static_cast<double>(around.size());
-      next.row(v) = mesh.points.row(v) + lambda * (mean - mesh.points.row(v));
-    }
-    mesh.points = next;
-  }
+  const UmbrellaSmoother smoother(mesh);
+  for (int it = 0; it < iterations; ++it) smoother.step(mesh.points, lambda);
 }
 
 void shuffle_order(Mesh& mesh, std::uint64_t seed) {

@@ -34,6 +34,18 @@ void quantize_coordinates(Points& points, int bits);
 // style). Open-boundary vertices are smoothed like the others. lambda in (0, 1].
 void smooth_laplacian(Mesh& mesh, int iterations, double lambda);
 
+// The same smoothing, one step at a time, over a connectivity built once (a model of the attack
+// evaluates many steps of it).
+class UmbrellaSmoother {
+ public:
+  explicit UmbrellaSmoother(const Mesh& connectivity);
+  // points <- points + lambda (neighbour mean - points), every vertex at once.
+  void step(Points& points, double lambda) const;
+
+ private:
+  std::vector<int> offsets_, neighbours_;
+};
+
 // Renumbers vertices and reorders faces at random (each face keeps its orientation, and starts
 // at a random one of its vertices): the same surface in another file order.
 void shuffle_order(Mesh& mesh, std::uint64_t seed);

@@ -208,6 +208,7 @@ Alignment align_suspect(const PreparedAsset& asset, const std::string& polyhedro
     a.level = r.level;
     a.residual = r.residual_rms;
     a.matched_fraction = r.matched_fraction;
+    a.attack_model = r.attack_model;
   } catch (const InputError& e) {  // this candidate does not fit; others may
     a.method = std::string("none: ") + e.reason();
   }

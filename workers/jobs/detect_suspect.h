@@ -82,6 +82,7 @@ struct Alignment {
   int level = 0;
   double residual = std::numeric_limits<double>::infinity();  // RMS, unit-box units
   double matched_fraction = 0;
+  std::string attack_model;    // resynchronize()'s: the attack modelled and taken out, or ""
   double context_mb = 0;       // the context's memory after use (for logs)
   std::string levels_built;    // e.g. "012--" (for logs)
 };

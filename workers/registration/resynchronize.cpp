@@ -17,6 +17,7 @@
 #include "geometry/nearest_neighbours.h"
 
 #include "registration/resync_context_impl.h"
+#include "registration/smoothing_model.h"
 
 namespace mm {
 
@@ -467,12 +468,23 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
     r.method = l == 0 ? "polyhedron" : "subdivided";
     r.level = l;
     if (o.align) r.to_control_frame = fit_similarity(in_order, level.points);
-    const Points p = r.to_control_frame.apply(in_order);
+    Points p = r.to_control_frame.apply(in_order);
+    if (o.model_smoothing && l >= 1) {
+      // A smoothed copy: aligned to the original smoothed the same way (a similarity fitted to
+      // the unsmoothed one takes in the shrink), with the smoothing's change of the original
+      // taken out; what is left is the mark as the smoothing left it.
+      const SmoothingModel model = fit_smoothing(level.op.refined, level.points, in_order, o.align);
+      if (model.iterations > 0) {
+        r.to_control_frame = model.to_original;
+        p = r.to_control_frame.apply(in_order) - (model.smoothed - level.points);
+        r.attack_model = model.describe();
+      }
+    }
     r.points = solve_level(level, l, p);
     // Level 0: what separates the suspect from the original (mark, quantisation, noise).
     const Points refined = l == 0 ? level.points : apply_subdivision(level.op, r.points);
     r.residual_rms = rms_rows(refined, p) / ctx.diagonal;
-    if (level.has_smooth && o.consider_resubdivision) {
+    if (level.has_smooth && o.consider_resubdivision && r.attack_model.empty()) {
       // The same count and faces also come from a level L-1 copy subdivided once more without
       // crease tags (a decoded file has none); solving that with the creased S_L biases every
       // control point near a crease.

@@ -66,6 +66,9 @@ struct ResyncOptions {
   // (false: the creased hypothesis only, as before; for experiments).
   bool consider_resubdivision = true;
   bool force_surface_fit = false;  // skip recognition (experiments, suspects known to be remeshed)
+  // In-order subdivided suspects: model a leaker's Laplacian smoothing from the original
+  // (registration/smoothing_model.h) and take its change of the original out before solving.
+  bool model_smoothing = true;
   int fit_iterations = 3;        // pairing / solve rounds against the current estimate
   std::uint64_t seed = 1;        // sampling is deterministic for a given seed
 };
@@ -83,6 +86,9 @@ struct Resynchronized {
   // without crease or corner tags (subdivide() on a decoded file): points solved with that
   // operator. Only for suspects in the original's numbering (order_recovered = false).
   bool resubdivided = false;
+  // The attack modelled from the original and taken out ("umbrella smoothing, lambda 0.5 x 10"),
+  // "" when none was.
+  std::string attack_model;
 };
 
 // Everything that depends only on the original control polyhedron (subdivision operators and
