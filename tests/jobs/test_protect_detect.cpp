@@ -4,6 +4,9 @@
 // unmarked original and a foreign part are attributed to nobody.
 #include <gtest/gtest.h>
 
+#include "attacks/crop.h"
+#include "attacks/retessellate.h"
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <memory>
@@ -240,6 +243,24 @@ TEST_F(ProtectDetect, UnmarkedOriginalAndForeignPartAreNotAttributed) {
   } catch (const InputError&) {
     // nothing matched: also no attribution
   }
+}
+
+// A decoded copy cropped to 80 % of its longest side, and remeshed: both go to the surface fit,
+// which pairs the original's surface with the suspect only where the suspect covers it. Each is
+// attributed to its copy alone; the unmarked original cropped the same way to none.
+TEST_F(ProtectDetect, CroppedAndRemeshedCopiesAreAttributedThroughTheSurfaceFit) {
+  for (const Mesh& suspect : {attacks::crop_along_longest_axis(fx->files[1].decoded, 0.8),
+                              attacks::remesh_isotropic(fx->files[1].decoded, 0.01)}) {
+    std::string method;
+    const Verdict v = detect(suspect, &method);
+    EXPECT_EQ(method, "surface-fit");
+    EXPECT_TRUE(v.attributed);
+    EXPECT_EQ(v.best.copy_id, fx->copies[1].copy_id);
+    EXPECT_LT(v.best.corrected_p, 1e-9);
+  }
+  const Verdict innocent = detect(attacks::crop_along_longest_axis(subdivide(fx->asset.control, 3), 0.8));
+  EXPECT_FALSE(innocent.attributed);
+  EXPECT_GT(innocent.best.corrected_p, 1e-4);
 }
 
 TEST_F(ProtectDetect, WrongKeyIsNotAttributedAWrongPayloadIsReported) {

@@ -18,6 +18,10 @@
 
 namespace mm::registration_detail {
 
+// Reverse pairs farther than this many times the forward pairs' RMS distance are not covered by
+// the suspect (noise and the mark keep covered ones within about twice it).
+constexpr double kCoverage = 4;
+
 Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, const ResyncOptions& o) {
   Resynchronized r;
   r.method = "surface-fit";
@@ -80,6 +84,7 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
       b.push_back(normal.dot(target));
     };
     int accepted = 0;
+    double forward_squares = 0;
     // Suspect samples -> current refined surface (its face normal).
     for (Eigen::Index k = 0; k < moved.rows(); ++k) {
       const Eigen::Vector3d q = moved.row(k).transpose();
@@ -98,11 +103,17 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
       const Eigen::Vector3d normal = (p1 - p0).cross(p2 - p0).normalized();
       if (!normal.allFinite()) continue;
       add_row({{f[0], h.barycentric[0]}, {f[1], h.barycentric[1]}, {f[2], h.barycentric[2]}}, normal, q);
+      forward_squares += h.distance * h.distance;
       ++accepted;
     }
     r.matched_fraction = static_cast<double>(accepted) / static_cast<double>(moved.rows());
     if (accepted < 3) throw InputError(o.source, "nothing matched the original surface after alignment");
-    // Refined vertices of the current estimate -> suspect surface (the suspect's face normal).
+    // Refined vertices of the current estimate -> suspect surface (the suspect's face normal),
+    // where the suspect covers them: a refined vertex much farther from the suspect than the
+    // suspect's samples are from the surface lies where the suspect has no surface (a crop), and
+    // its pair with the crop's edge would pull the fit there.
+    const double covered = std::min(max_d, kCoverage * std::sqrt(forward_squares / std::max(1, accepted)) +
+                                               1e-6 * ctx.diagonal);
     const int pairs = std::min(nr, std::max(1, o.suspect_samples));
     for (int k = 0; k < pairs; ++k) {
       const int v = static_cast<int>(static_cast<long long>(k) * nr / pairs);
@@ -110,7 +121,7 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
       const TriangleHit h = suspect_tree.closest(Tinv.apply(pv).transpose());
       const Eigen::Vector3d c = T.apply(Eigen::RowVector3d(h.point.transpose())).transpose();
       const double d = (c - pv.transpose()).norm();
-      if (!(d <= max_d)) continue;
+      if (!(d <= covered)) continue;
       const auto& f = suspect_tree.triangle(h.triangle);
       const Eigen::Vector3d s0 = suspect.points.row(f[0]), s1 = suspect.points.row(f[1]), s2 = suspect.points.row(f[2]);
       const Eigen::Vector3d normal = (T.rotation * (s1 - s0).cross(s2 - s0)).normalized();
