@@ -116,9 +116,9 @@ config "$R"
 read -r wall user rss <"$R/time"
 echo "run $R: $(cat "$R/run.txt")"
 echo "detect jobs: wall ${wall} s, CPU user ${user} s, peak RSS $((rss / 1024)) MB, $WORKERS workers"
-python3 - "$R" "$W/setup/home" "$MM" <<'PY'
+python3 - "$R" "$W/setup/home" "$MM" "$WORKERS" <<'PY'
 import json, subprocess, sys, collections
-run, home, mm = sys.argv[1:4]
+run, home, mm, workers = sys.argv[1:5]
 dets = json.load(open(run + "/detections.json"))
 customers = {c["id"]: c["name"] for c in json.loads(subprocess.check_output([mm, "customer", "list", "--home", home, "--json"]))}
 rows = []
@@ -132,25 +132,34 @@ for d in dets:
     elif not named: outcome = "missed"
     elif named == expected: outcome = "traced"
     else: outcome = "partial"
-    rows.append((stem, attack, truth, d["verdict"], "+".join(sorted(named)) or "-", p, d.get("resync_method") or "-", outcome))
+    rows.append((stem, attack, truth, d["verdict"], "+".join(sorted(named)) or "-", p, d.get("resync_method") or "-",
+                 d["details"].get("seconds", 0.0), outcome))
 rows.sort()
-print("%-10s %-18s %-18s %-18s %-18s %9s %-12s %s" % ("part", "attack", "leaker", "verdict", "named", "-log10p", "resync", "outcome"))
+print("%-10s %-18s %-18s %-18s %-18s %9s %-12s %7s %s" % ("part", "attack", "leaker", "verdict", "named", "-log10p", "resync", "seconds", "outcome"))
 for r in rows:
-    print("%-10s %-18s %-18s %-18s %-18s %9.1f %-12s %s" % r)
+    print("%-10s %-18s %-18s %-18s %-18s %9.1f %-12s %7.2f %s" % r)
 by = collections.OrderedDict()
 for r in rows:
     by.setdefault(r[1], []).append(r)
 print()
 print("%-18s %7s %6s %6s  %s" % ("attack", "traced", "wrong", "tried", "median -log10 p"))
 for a, rs in sorted(by.items()):
-    traced = sum(r[7] == "traced" for r in rs)
-    wrong = sum(r[7] == "WRONG" for r in rs)
+    traced = sum(r[8] == "traced" for r in rs)
+    wrong = sum(r[8] == "WRONG" for r in rs)
     ps = sorted(r[5] for r in rs)
     print("%-18s %7d %6d %6d  %.1f" % (a, traced, wrong, len(rs), ps[len(ps) // 2]))
+print()
+print("%-12s %6s %8s %8s  (wall seconds of one detection, %s workers at once)" % ("resync", "count", "median", "max", workers))
+paths = {}
+for r in rows:
+    paths.setdefault(r[6], []).append(r[7])
+for path, secs in sorted(paths.items()):
+    secs.sort()
+    print("%-12s %6d %8.2f %8.2f" % (path, len(secs), secs[len(secs) // 2], secs[-1]))
 leaks = [r for r in rows if r[2] != "nobody"]
 innocent = [r for r in rows if r[2] == "nobody"]
 print()
 print("traced %d of %d leaks (every leaker named, no one else); wrong customers %d; innocent suspects attributed %d of %d" % (
-    sum(r[7] == "traced" for r in leaks), len(leaks), sum(r[7] == "WRONG" for r in rows),
+    sum(r[8] == "traced" for r in leaks), len(leaks), sum(r[8] == "WRONG" for r in rows),
     sum(r[4] != "-" for r in innocent), len(innocent)))
 PY
