@@ -106,8 +106,13 @@ struct ProtectDetect : ::testing::Test {
     EXPECT_EQ(v.best.copy_id, fx->copies[i].copy_id) << what;
     EXPECT_LT(v.best.corrected_p, 1e-9) << what;
     EXPECT_LT(v.best.calibrated_p * 3, 1e-9) << what;
-    EXPECT_LE(v.best.binomial_p, v.best.p_value) << what;
-    EXPECT_LE(v.best.calibrated_p, v.best.p_value) << what;
+    // The verdict's p: twice the smaller of the sign count's (the larger of its binomial and
+    // calibrated p) and the matched score's, in -log10.
+    EXPECT_NEAR(v.best.neg_log10_p,
+                std::max(std::min(v.best.binomial_neg_log10_p, v.best.calibrated_neg_log10_p),
+                         v.best.matched_neg_log10_p) - std::log10(2.0),
+                1e-9)
+        << what;
     EXPECT_EQ(v.best.decoded_payload, fx->copies[i].payload) << what;
     for (const auto& s : v.scores) {
       if (s.copy_id != fx->copies[i].copy_id) {

@@ -114,22 +114,24 @@ std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& re
                                       c.settings.params);
       evidence_for = &c.settings;
     }
+    // The copy's issued payload fixes its whole sequence B, so the sign count is tested against
+    // that (the exact binomial tail) rather than against the message it decodes to.
+    const std::vector<bool> expected = payload_to_bits(c.payload, c.settings.message_bits);
     Extraction e = extract(asset.basis, asset.control.points, registered, c.settings.message_bits,
-                           c.key, c.nonce, c.settings.params);
+                           c.key, c.nonce, c.settings.params, &expected);
     CopyScore s;
     s.copy_id = c.copy_id;
     s.correlation = e.correlation;
     s.compared = e.compared;
     s.binomial_p = e.p_value;
     s.binomial_neg_log10_p = e.neg_log10_p;
-    const NullCalibration cal = calibrate_null(e.signs, c.settings.message_bits, e.correlation);
+    const NullCalibration cal = calibrate_null(e.signs, c.settings.message_bits, e.correlation, &expected);
     s.calibrated_p = cal.p;
     s.calibrated_neg_log10_p = cal.neg_log10_p;
     s.null_mean = cal.mean;
     s.null_sd = cal.sd;
     const MarkP sign = verdict_p(e, cal);
     s.sign_neg_log10_p = sign.neg_log10_p;
-    const std::vector<bool> expected = payload_to_bits(c.payload, c.settings.message_bits);
     const MatchedScore matched =
         matched_score(evidence, c.key, c.nonce, expected, usable_coefficients(asset.basis));
     s.matched_statistic = matched.statistic;
