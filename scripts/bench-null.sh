@@ -28,7 +28,7 @@ config() {
 EOF
 }
 
-# six attacks, as bench-detect names them
+# six attacks (numbered 0-5 in the suspects' names)
 attacks=("noise -A 0.002 --seed 9" "smooth -n 5" "remesh --edge 0.01" "simplify --keep 0.3" "quantize --bits 9"
          "subdivide --linear -L 1")
 if [ ! -f "$W/setup/ready" ]; then
@@ -82,7 +82,7 @@ for d in dets:
     for cand in d["details"].get("candidates", []):
         for s in cand["copies"]:
             who = copy_customer.get(s["copy_id"])
-            row = (s["sign_neg_log10_p"], s["matched_neg_log10_p"], -math.log10(max(s["p_value"], 1e-300)), tried)
+            row = (s["sign_neg_log10_p"], s["matched_neg_log10_p"], -math.log10(max(s["p_value"], 1e-300)), kind[-1])
             (leaks if who == truth else trials).append(row)
 n = len(trials)
 print("innocent trials: %d (suspect, copy) pairs over %d detections; %d leaked-copy scores besides" % (n, len(dets), len(leaks)))
@@ -92,6 +92,14 @@ for alpha in (0.1, 0.01, 0.001, 1e-4, 1e-6, 1e-9):
     t = -math.log10(alpha)
     counts = [sum(r[i] > t for r in trials) for i in range(3)]
     print("%-10g %12.1f %12d %12d %12d" % (alpha, alpha * n, *counts))
+# One source under its six attacks keeps much of its recovered pattern and meets the same copies'
+# keys, so its trials are not independent across attacks; within one attack they are.
+print()
+print("per attack (independent trials within each): below 0.01 / below 0.001, sign count | matched | combined")
+for k in sorted({r[3] for r in trials}):
+    rs = [r for r in trials if r[3] == k]
+    cells = ["%d / %d" % (sum(r[i] > 2 for r in rs), sum(r[i] > 3 for r in rs)) for i in range(3)]
+    print("attack %s: %4d trials, expected %.1f / %.2f:  %s | %s | %s" % (k, len(rs), 0.01 * len(rs), 0.001 * len(rs), *cells))
 false = 0
 for d in dets:
     stem, kind, truth = d["suspect_name"].rsplit(".", 1)[0].split("--")
