@@ -4,7 +4,8 @@
 # (the leaker goes round the three) is attacked with `meshmark attack` at several strengths, and
 # innocent suspects are made from the unmarked originals; every suspect is detected by
 # `meshmark run` and the verdicts are tabled: expected and named customer, -log10 of the corrected
-# p-value, the resynchronisation path. Rewrites docs/results/detect.md.
+# p-value, the resynchronisation path, the seconds. Rewrites docs/results/detect.md and plots
+# -log10 p against strength per attack (docs/results/detect-<attack>.png).
 #
 # Usage: scripts/bench-detect.sh WORK_DIR
 #   MESHMARK=path/to/meshmark (default build/daemon/meshmark), MESHES=dir,
@@ -116,7 +117,7 @@ config "$R"
 read -r wall user rss <"$R/time"
 echo "run $R: $(cat "$R/run.txt")"
 echo "detect jobs: wall ${wall} s, CPU user ${user} s, peak RSS $((rss / 1024)) MB, $WORKERS workers"
-python3 - "$R" "$W/setup/home" "$MM" "$WORKERS" <<'PY'
+python3 - "$R" "$W/setup/home" "$MM" "$WORKERS" "$here" <<'PY'
 import json, subprocess, sys, collections
 run, home, mm, workers = sys.argv[1:5]
 dets = json.load(open(run + "/detections.json"))
@@ -159,6 +160,29 @@ for path, secs in sorted(paths.items()):
 leaks = [r for r in rows if r[2] != "nobody"]
 innocent = [r for r in rows if r[2] == "nobody"]
 print()
+# -log10 p against strength per attack (as the paper's Figure 8), one curve per part, with the
+# threshold: docs/results/detect-<attack>.png.
+import os
+results = os.path.join(sys.argv[5], "docs", "results")
+labels = {"noise": "uniform noise (x largest side)", "quantize": "bits", "smooth": "smoothing steps (lambda 0.5)",
+          "simplify": "edges kept", "remesh": "edge length (x diagonal)", "crop": "share of the longest side kept"}
+for family, x_label in labels.items():
+    points = [(r[0], float(r[1].split("-", 1)[1]), min(r[5], 100.0)) for r in rows if r[1].startswith(family + "-")]
+    if not points:
+        continue
+    if family in ("noise", "smooth"):
+        points += [(r[0], 0.0, min(r[5], 100.0)) for r in rows if r[1] == "none"]
+    xs = sorted({x for _, x, _ in points})
+    table = os.path.join(run, "detect-%s.tsv" % family)
+    with open(table, "w") as f:
+        for part, x, y in sorted(points):
+            f.write("%s\t%g\t%g\n" % (part, x, y))
+        for x in xs:
+            f.write("p = 1e-9\t%g\t9\n" % x)
+    os.makedirs(results, exist_ok=True)
+    subprocess.check_call([mm, "plot", table, os.path.join(results, "detect-%s.png" % family), "--title",
+                           "detection after " + family, "--x-label", x_label, "--y-label", "-log10 corrected p",
+                           "--y-max", "100"], stdout=subprocess.DEVNULL)
 print("traced %d of %d leaks (every leaker named, no one else); wrong customers %d; innocent suspects attributed %d of %d" % (
     sum(r[8] == "traced" for r in leaks), len(leaks), sum(r[8] == "WRONG" for r in rows),
     sum(r[4] != "-" for r in innocent), len(innocent)))

@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -15,6 +16,7 @@
 #include "cli/key_file.h"
 #include "cli/mesh_files.h"
 #include "meshio/read_mesh.h"
+#include "render/image.h"
 #include "samples/samples.h"
 
 namespace mm::cli {
@@ -59,6 +61,63 @@ void add_sample_command(CLI::App& app) {
   });
 }
 
+// A line plot of a table, for the benchmarks: lines "series<TAB>x<TAB>y", '#' comments.
+void add_plot_command(CLI::App& app) {
+  struct Args {
+    std::string in, out, title, x_label, y_label;
+    double y_max = 0;
+  };
+  auto a = std::make_shared<Args>();
+  auto* c = app.add_subcommand("plot", "Draw a line plot (PNG) of a table of series<TAB>x<TAB>y lines");
+  c->add_option("table", a->in, "tab-separated lines: series name, x, y ('#' starts a comment)")->required();
+  c->add_option("output", a->out, "PNG file to write")->required();
+  c->add_option("--title", a->title, "plot title");
+  c->add_option("--x-label", a->x_label, "x axis label");
+  c->add_option("--y-label", a->y_label, "y axis label");
+  c->add_option("--y-max", a->y_max, "clip the y axis at this value (0: from the data)")->check(kFiniteNumber);
+  c->callback([a] {
+    std::ifstream in(a->in);
+    if (!in) throw InputError(a->in, "cannot be read");
+    std::vector<PlotSeries> series;
+    std::string line;
+    for (int number = 1; std::getline(in, line); ++number) {
+      if (line.empty() || line[0] == '#') continue;
+      std::istringstream fields(line);
+      std::string name, xs, ys;
+      if (!std::getline(fields, name, '\t') || !std::getline(fields, xs, '\t') || !std::getline(fields, ys, '\t'))
+        throw InputError(a->in, "line " + std::to_string(number) + ": expected series<TAB>x<TAB>y");
+      double x = 0, y = 0;
+      try {
+        std::size_t used_x = 0, used_y = 0;
+        x = std::stod(xs, &used_x);
+        y = std::stod(ys, &used_y);
+        if (used_x != xs.size() || used_y != ys.size()) throw std::invalid_argument("trailing characters");
+      } catch (const std::exception&) {
+        throw InputError(a->in, "line " + std::to_string(number) + ": x and y must be numbers");
+      }
+      auto it = std::find_if(series.begin(), series.end(), [&](const PlotSeries& s) { return s.label == name; });
+      if (it == series.end()) {
+        static const Rgb palette[] = {colours::blue, colours::red, colours::green, colours::orange,
+                                      colours::purple, colours::black, colours::grey};
+        PlotSeries s;
+        s.label = name;
+        s.colour = palette[series.size() % (sizeof palette / sizeof palette[0])];
+        series.push_back(s);
+        it = series.end() - 1;
+      }
+      it->points.emplace_back(x, a->y_max > 0 ? std::min(y, a->y_max) : y);
+    }
+    if (series.empty()) throw InputError(a->in, "no data lines");
+    PlotOptions o;
+    o.title = a->title;
+    o.x_label = a->x_label;
+    o.y_label = a->y_label;
+    if (a->y_max > 0) o.y_min = 0, o.y_max = a->y_max;
+    plot_lines(series, o).write_png(a->out);
+    std::cout << a->out << ": " << series.size() << " series\n";
+  });
+}
+
 void add_keygen_command(CLI::App& app) {
   auto out = std::make_shared<std::string>();
   auto* c = app.add_subcommand("keygen",
@@ -84,6 +143,7 @@ void add_offline_commands(CLI::App& app) {
   });
   add_sample_command(app);
   add_keygen_command(app);
+  add_plot_command(app);
   add_attack_commands(app);
   add_mark_commands(app);
 }

@@ -127,6 +127,22 @@ TEST(CliAttack, NoiseIsSeededAndBoundedSimilarityAndSubdivideDoWhatTheySay) {
   EXPECT_FALSE(exists(s / "x.off"));
 }
 
+// A table plotted as a PNG; a malformed table names its file and line and writes nothing.
+TEST(CliPlot, TablesBecomeLinePlotsMalformedOnesAreRefused) {
+  Scratch s;
+  const std::string table = s / "t.tsv", bad = s / "bad.tsv";
+  std::ofstream(table) << "# part, strength, -log10 p\nfandisk\t0.001\t60\nfandisk\t0.005\t20\nabc9\t0.001\t15\n";
+  std::ofstream(bad) << "fandisk\t0.001\t60\nfandisk\tx\t20\n";
+  EXPECT_RUN_OK(meshmark(s, {"plot", table, s / "t.png", "--title", "noise", "--y-max", "100"}));
+  const std::string png = slurp(s / "t.png");
+  ASSERT_GT(png.size(), 100u);
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+  const CliRun refused = meshmark(s, {"plot", bad, s / "bad.png"});
+  EXPECT_EQ(refused.code, 2);
+  EXPECT_NE(refused.err.find("bad.tsv: line 2"), std::string::npos) << refused.err;
+  EXPECT_FALSE(exists(s / "bad.png"));
+}
+
 // The attacks a leaker's mesh tool makes, each through the command line: what each writes, and
 // the input's name in the errors of those that cannot run.
 TEST(CliAttack, TheBenchmarksAttacksRunFromTheCommandLine) {
