@@ -16,6 +16,7 @@ set -euo pipefail
 BENCH_ENV="MESHMARK LOG_LEVEL"
 . "$(dirname "$0")/bench-results.sh"
 bench_results detect-memory "Detection batch: peak memory and verdicts of 35 suspects" "$@"
+. "$(dirname "$0")/bench-homes.sh"
 here="$(cd "$(dirname "$0")/.." && pwd)"
 MM=$(realpath "${MESHMARK:-$here/build/daemon/meshmark}")
 W=${1:?usage: bench-detect-memory.sh WORK_DIR [context_cache_mb]}
@@ -35,19 +36,8 @@ EOF
 }
 
 if [ ! -f "$W/setup/ready" ]; then
-  rm -rf "$W/setup"
   S="$W/setup"
-  mkdir -p "$S/drop" "$S/out" "$S/suspects"
-  "$MM" init --home "$S/home" >/dev/null
-  "$MM" customer add alice --home "$S/home" >/dev/null
-  "$MM" customer add bob --home "$S/home" >/dev/null
-  budget="" config "$S"
-  for who in alice bob; do
-    for p in "${parts[@]}"; do
-      "$MM" submit protect --config "$S/meshmarkd.json" --customer "$who" "$meshes/$p" >/dev/null
-    done
-  done
-  "$MM" run --until-empty --no-drops --config "$S/meshmarkd.json" >/dev/null
+  budget="" bench_protect "$S" "$meshes" "${parts[*]}" alice bob
   for p in "${parts[@]}"; do
     stem=${p%.*} ext=${p##*.}
     a_dec=$(ls "$S/out/alice/$stem"-*."$ext") b_dec=$(ls "$S/out/bob/$stem"-*."$ext")
@@ -64,13 +54,7 @@ if [ ! -f "$W/setup/ready" ]; then
   touch "$S/ready"
 fi
 
-n=1
-while [ -e "$W/run-$n" ]; do n=$((n + 1)); done
-R="$W/run-$n"
-mkdir -p "$R/drop" "$R/out"
-cp -a "$W/setup/home" "$R/home"
-config "$R"
-"$MM" submit detect --config "$R/meshmarkd.json" "$W/setup/suspects"/* >/dev/null
+bench_new_run "$W"
 /usr/bin/time -f "%M %U %S" -o "$R/time" "$MM" run --until-empty --no-drops --workers 2 \
   --config "$R/meshmarkd.json" >"$R/run.txt" 2>"$R/run.log" || true
 read -r rss user sys <"$R/time"

@@ -17,6 +17,7 @@ set -euo pipefail
 BENCH_ENV="MESHMARK MESHES LIST ATTACKS WORKERS"
 . "$(dirname "$0")/bench-results.sh"
 bench_results detect "Detection after attacks: verdicts over the shared CAD parts" "$@"
+. "$(dirname "$0")/bench-homes.sh"
 here="$(cd "$(dirname "$0")/.." && pwd)"
 MM=$(realpath "${MESHMARK:-$here/build/daemon/meshmark}")
 MESHES=$(realpath "${MESHES:-$here/../shared/data/meshes}")
@@ -63,18 +64,8 @@ attack() {
 }
 
 if [ ! -f "$W/setup/ready" ]; then
-  rm -rf "$W/setup"
   S="$W/setup"
-  mkdir -p "$S/drop" "$S/out" "$S/suspects"
-  "$MM" init --home "$S/home" >/dev/null
-  for who in "${customers[@]}"; do "$MM" customer add "$who" --home "$S/home" >/dev/null; done
-  config "$S"
-  for p in $LIST; do
-    for who in "${customers[@]}"; do
-      "$MM" submit protect --config "$S/meshmarkd.json" --customer "$who" "$MESHES/$p" >/dev/null
-    done
-  done
-  (cd "$S" && "$MM" run --until-empty --no-drops --config meshmarkd.json >/dev/null)
+  bench_protect "$S" "$MESHES" "$LIST" "${customers[@]}"
   i=0
   for p in $LIST; do
     stem=${p%.*}
@@ -103,13 +94,7 @@ if [ ! -f "$W/setup/ready" ]; then
   touch "$S/ready"
 fi
 
-n=1
-while [ -e "$W/run-$n" ]; do n=$((n + 1)); done
-R="$W/run-$n"
-mkdir -p "$R/drop" "$R/out"
-cp -a "$W/setup/home" "$R/home"
-config "$R"
-(cd "$R" && "$MM" submit detect --config meshmarkd.json "$W/setup/suspects"/* >/dev/null)
+bench_new_run "$W"
 /usr/bin/time -f "%e %U %M" -o "$R/time" bash -c "cd '$R' && '$MM' run --until-empty --no-drops --config meshmarkd.json" \
   >"$R/run.txt" 2>"$R/run.log" || true
 "$MM" detections --home "$R/home" --json --limit 100000 >"$R/detections.json"
