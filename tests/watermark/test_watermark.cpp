@@ -5,6 +5,7 @@
 #include <cstring>
 #include <random>
 
+#include "common/seeded_keys.h"
 #include "common/shared_meshes.h"
 #include "meshio/normalize.h"
 #include "meshio/read_mesh.h"
@@ -14,24 +15,9 @@
 namespace mm {
 namespace {
 
-Key seeded_key(std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  Key k;
-  for (auto& b : k) b = static_cast<std::uint8_t>(rng() >> 56);
-  return k;
-}
-Nonce seeded_nonce(std::uint64_t seed) {
-  std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ull);
-  Nonce n;
-  for (auto& b : n) b = static_cast<std::uint8_t>(rng() >> 56);
-  return n;
-}
-std::vector<bool> seeded_message(int bits, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<bool> m(bits);
-  for (int i = 0; i < bits; ++i) m[i] = (rng() >> 63) != 0;
-  return m;
-}
+using test::seeded_key;
+using test::seeded_message;
+using test::seeded_nonce;
 
 Mesh fandisk() {
   Mesh m = read_mesh(test::shared_mesh("fandisk_quads.off"));
