@@ -338,18 +338,18 @@ void add_extract_command(CLI::App& app) {
     const Resynchronized rs = resync(ctx, ctl, suspect, opts, mark, aligned);
 
     const std::vector<bool> expected = message_to_bits(rec.message);
-    const Extraction ex = extract(ctl.basis, ctl.normalized.points, rs.points, rec.message_bits, key, rec.nonce,
-                                  rec.params, &expected);
-    // As the daemon does: the sign count's p is the larger of its exact tail and an empirical
-    // null from public sequences; the matched score has its own distribution-free bound; the
-    // verdict takes the smaller of the two, doubled.
-    const NullCalibration cal = calibrate_null(ex.signs, rec.message_bits, ex.correlation, &expected);
-    const jobs::MarkP sign_p = jobs::verdict_p(ex, cal);
-    const MatchedScore matched =
-        matched_score(coefficient_evidence(ctl.basis, ctl.normalized.points, rs.points, rec.message_bits, rec.params),
-                      key, rec.nonce, expected, usable_coefficients(ctl.basis));
-    const jobs::MarkP mark_p = jobs::combined_p(sign_p, matched);
-    const std::vector<bool>& message = matched.neg_log10_p > sign_p.neg_log10_p ? matched.message : ex.message;
+    // Scored as the daemon scores a copy (jobs::copy_statistics): the sign count with its
+    // calibrated null, the matched score, the verdict on the smaller p of the two, doubled.
+    const jobs::CopyStatistics st = jobs::copy_statistics(
+        ctl.basis, ctl.normalized.points, rs.points,
+        coefficient_evidence(ctl.basis, ctl.normalized.points, rs.points, rec.message_bits, rec.params), key,
+        rec.nonce, rec.params, expected);
+    const Extraction& ex = st.sign;
+    const NullCalibration& cal = st.calibration;
+    const jobs::MarkP& sign_p = st.sign_p;
+    const MatchedScore& matched = st.matched;
+    const jobs::MarkP& mark_p = st.p;
+    const std::vector<bool>& message = st.message;
     const bool matches = message == expected;
     const std::string decoded = bits_to_bytes(message);
     const double verdict_p = mark_p.p;

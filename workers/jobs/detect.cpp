@@ -99,6 +99,20 @@ bool better_copy(const CopyScore& a, const CopyScore& b) {
   return a.correlation > b.correlation;
 }
 
+CopyStatistics copy_statistics(const SpectralBasis& basis, const Points& original, const Points& registered,
+                               const CoefficientEvidence& evidence, const Key& key, const Nonce& nonce,
+                               const EmbedParams& params, const std::vector<bool>& expected) {
+  const int bits = static_cast<int>(expected.size());
+  CopyStatistics s;
+  s.sign = extract(basis, original, registered, bits, key, nonce, params, &expected);
+  s.calibration = calibrate_null(s.sign.signs, bits, s.sign.correlation, &expected);
+  s.sign_p = verdict_p(s.sign, s.calibration);
+  s.matched = matched_score(evidence, key, nonce, expected, usable_coefficients(basis));
+  s.p = combined_p(s.sign_p, s.matched);
+  s.message = s.matched.neg_log10_p > s.sign_p.neg_log10_p ? s.matched.message : s.sign.message;
+  return s;
+}
+
 std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,
                                     const std::vector<CopyCandidate>& copies) {
   std::vector<CopyScore> scores;
@@ -114,34 +128,26 @@ std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& re
                                       c.settings.params);
       evidence_for = &c.settings;
     }
-    // The copy's issued payload fixes its whole sequence B, so the sign count is tested against
-    // that (the exact binomial tail) rather than against the message it decodes to.
     const std::vector<bool> expected = payload_to_bits(c.payload, c.settings.message_bits);
-    Extraction e = extract(asset.basis, asset.control.points, registered, c.settings.message_bits,
-                           c.key, c.nonce, c.settings.params, &expected);
+    const CopyStatistics st = copy_statistics(asset.basis, asset.control.points, registered, evidence, c.key,
+                                              c.nonce, c.settings.params, expected);
     CopyScore s;
     s.copy_id = c.copy_id;
-    s.correlation = e.correlation;
-    s.compared = e.compared;
-    s.binomial_p = e.p_value;
-    s.binomial_neg_log10_p = e.neg_log10_p;
-    const NullCalibration cal = calibrate_null(e.signs, c.settings.message_bits, e.correlation, &expected);
-    s.calibrated_p = cal.p;
-    s.calibrated_neg_log10_p = cal.neg_log10_p;
-    s.null_mean = cal.mean;
-    s.null_sd = cal.sd;
-    const MarkP sign = verdict_p(e, cal);
-    s.sign_neg_log10_p = sign.neg_log10_p;
-    const MatchedScore matched =
-        matched_score(evidence, c.key, c.nonce, expected, usable_coefficients(asset.basis));
-    s.matched_statistic = matched.statistic;
-    s.matched_neg_log10_p = matched.neg_log10_p;
-    const MarkP mp = combined_p(sign, matched);
-    s.p_value = mp.p;
-    s.neg_log10_p = mp.neg_log10_p;
+    s.correlation = st.sign.correlation;
+    s.compared = st.sign.compared;
+    s.binomial_p = st.sign.p_value;
+    s.binomial_neg_log10_p = st.sign.neg_log10_p;
+    s.calibrated_p = st.calibration.p;
+    s.calibrated_neg_log10_p = st.calibration.neg_log10_p;
+    s.null_mean = st.calibration.mean;
+    s.null_sd = st.calibration.sd;
+    s.sign_neg_log10_p = st.sign_p.neg_log10_p;
+    s.matched_statistic = st.matched.statistic;
+    s.matched_neg_log10_p = st.matched.neg_log10_p;
+    s.p_value = st.p.p;
+    s.neg_log10_p = st.p.neg_log10_p;
     s.corrected_p = s.p_value;
-    // The payload as the stronger statistic decodes it.
-    const std::vector<bool>& decoded = matched.neg_log10_p > sign.neg_log10_p ? matched.message : e.message;
+    const std::vector<bool>& decoded = st.message;
     s.decoded_payload = bits_to_payload(decoded);
     s.payload_matches = s.decoded_payload == c.payload;
     int wrong = 0;

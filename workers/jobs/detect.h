@@ -96,6 +96,22 @@ MarkP verdict_p(const Extraction& extraction, const NullCalibration& calibration
 // The copy's p from both statistics: 2 min(sign p, matched p), in -log10 too.
 MarkP combined_p(const MarkP& sign, const MatchedScore& matched);
 
+// One copy's two statistics against a registered suspect and what the verdict takes from them:
+// the sign count against the copy's whole sequence (`expected`, its issued payload, fixes it)
+// with its calibrated null, the matched score over `evidence`, their combined p, and the message
+// as the stronger statistic decodes it. The one scoring behind detect jobs and `meshmark extract`.
+struct CopyStatistics {
+  Extraction sign;
+  NullCalibration calibration;
+  MarkP sign_p;
+  MatchedScore matched;
+  MarkP p;                    // combined_p(sign_p, matched)
+  std::vector<bool> message;  // decoded by the stronger statistic
+};
+CopyStatistics copy_statistics(const SpectralBasis& basis, const Points& original, const Points& registered,
+                               const CoefficientEvidence& evidence, const Key& key, const Nonce& nonce,
+                               const EmbedParams& params, const std::vector<bool>& expected);
+
 // Each copy's score of a suspect resynchronised to asset.control (resynchronize(...).points),
 // uncorrected (corrected_p = p_value), in input order.
 std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,

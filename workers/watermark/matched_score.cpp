@@ -97,16 +97,17 @@ MatchedScore matched_score(const CoefficientEvidence& ev, const Key& key, const 
                            const std::vector<bool>& expected, int num_coefficients) {
   if (static_cast<int>(expected.size()) != ev.message_bits)
     throw std::invalid_argument("matched_score: expected message length differs from the evidence's");
-  const MarkSequence seq = make_sequence(expected, num_coefficients, key, nonce);
+  // B for the all-zero message is the key stream in +-1 form; a 1 bit inverts its entries.
   const MarkSequence stream =
       make_sequence(std::vector<bool>(expected.size(), false), num_coefficients, key, nonce);
   MatchedScore out;
   double dot = 0, norm2 = 0;
   std::vector<double> vote(expected.size(), 0.0);
-  for (std::size_t j = 0; j < ev.u.size() && j < seq.b.size(); ++j) {
-    dot += ev.u[j] * seq.b[j];
+  for (std::size_t j = 0; j < ev.u.size() && j < stream.b.size(); ++j) {
+    const int b = expected[j % expected.size()] ? -stream.b[j] : stream.b[j];
+    dot += ev.u[j] * b;
     norm2 += ev.u[j] * ev.u[j];
-    // stream.b is B for the all-zero message; a 1 bit inverts it, so -u_j stream_j votes for 1.
+    // -u_j stream_j votes for a 1 bit.
     vote[j % expected.size()] -= ev.u[j] * stream.b[j];
   }
   out.message.resize(expected.size());
