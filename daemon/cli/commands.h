@@ -38,6 +38,7 @@ void add_mark_commands(CLI::App& app);     // embed, extract (called by add_offl
 void add_attack_commands(CLI::App& app);   // attack ... (called by add_offline_commands)
 void add_compress_commands(CLI::App& app);  // compress, decompress, compare, render
 void add_run_commands(CLI::App& app);      // submit protect|detect, run --until-empty
-void add_store_commands(CLI::App& app);    // init, customer, jobs, assets, copies, detections
+void add_store_commands(CLI::App& app);
+void add_evidence_commands(CLI::App& app);  // evidence DETECTION OUT_DIR | pubkey, verify PACKAGE    // init, customer, jobs, assets, copies, detections
 
 }  // namespace mm::cli

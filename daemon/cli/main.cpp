@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   mm::cli::add_compress_commands(app);
   mm::cli::add_run_commands(app);
   mm::cli::add_store_commands(app);
+  mm::cli::add_evidence_commands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

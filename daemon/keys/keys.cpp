@@ -91,28 +91,28 @@ bool SecretKey::operator==(const SecretKey& o) const {
   return sodium_memcmp(bytes_.data(), o.bytes_.data(), kKeyBytes) == 0;
 }
 
-SecretKey load_master_key_file(const std::string& path) {
+SecretKey load_secret_key_file(const std::string& path, const std::string& label) {
   int fd = ::open(path.c_str(), O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
-  if (fd < 0) throw KeyError("master key file " + path + ": cannot open: " + errno_text());
+  if (fd < 0) throw KeyError(label + " " + path + ": cannot open: " + errno_text());
   struct stat st {};
   if (::fstat(fd, &st) != 0) {
     ::close(fd);
-    throw KeyError("master key file " + path + ": cannot stat: " + errno_text());
+    throw KeyError(label + " " + path + ": cannot stat: " + errno_text());
   }
   if (!S_ISREG(st.st_mode)) {
     ::close(fd);
-    throw KeyError("master key file " + path + ": not a regular file");
+    throw KeyError(label + " " + path + ": not a regular file");
   }
   if ((st.st_mode & 077) != 0) {
     ::close(fd);
     char mode[8];
     std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
-    throw KeyError("master key file " + path + " has mode " + mode +
+    throw KeyError(label + " " + path + " has mode " + mode +
                    "; refusing to use it: it must be readable by its owner only (chmod 600 " + path + ")");
   }
   if (st.st_size > 4096) {
     ::close(fd);
-    throw KeyError("master key file " + path + ": too large to be a key");
+    throw KeyError(label + " " + path + ": too large to be a key");
   }
   std::string text(static_cast<std::size_t>(st.st_size), '\0');
   std::size_t got = 0;
@@ -125,7 +125,7 @@ SecretKey load_master_key_file(const std::string& path) {
   ::close(fd);
   text.resize(got);
   try {
-    SecretKey k = SecretKey::parse_text(text, "master key file " + path);
+    SecretKey k = SecretKey::parse_text(text, label + " " + path);
     sodium_memzero(text.data(), text.size());
     return k;
   } catch (...) {
@@ -140,16 +140,19 @@ std::optional<SecretKey> master_key_from_env() {
   return SecretKey::parse_text(v, std::string("environment variable ") + kMasterKeyEnv);
 }
 
+SecretKey load_master_key_file(const std::string& path) { return load_secret_key_file(path, "master key file"); }
+void create_master_key_file(const std::string& path) { create_secret_key_file(path, "master key file"); }
+
 SecretKey load_master_key(const std::string& file_path) {
   if (auto k = master_key_from_env()) return *k;
   return load_master_key_file(file_path);
 }
 
-void create_master_key_file(const std::string& path) {
+void create_secret_key_file(const std::string& path, const std::string& label) {
   ensure_sodium();
   struct stat st {};
   if (::lstat(path.c_str(), &st) == 0)
-    throw KeyError("master key file " + path + " already exists; refusing to overwrite it");
+    throw KeyError(label + " " + path + " already exists; refusing to overwrite it");
   SecretKey k = SecretKey::random();
   char hex[2 * kKeyBytes + 1];
   sodium_bin2hex(hex, sizeof hex, k.data(), kKeyBytes);
@@ -165,7 +168,7 @@ void create_master_key_file(const std::string& path) {
     why = e.what();
   }
   sodium_memzero(body.data(), body.size());
-  if (!written) throw KeyError("master key file " + path + ": cannot write: " + why);
+  if (!written) throw KeyError(label + " " + path + ": cannot write: " + why);
 }
 
 SealedKey seal_customer_key(const SecretKey& master, const SecretKey& key, std::int64_t customer_id,

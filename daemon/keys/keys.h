@@ -48,6 +48,13 @@ class SecretKey {
   std::array<std::uint8_t, kKeyBytes> bytes_;
 };
 
+// A 32-byte secret from a file (the master key, the evidence signing key's seed): refuses
+// (KeyError naming `label`, the path and the mode) unless the file is a regular file without any
+// group/other permission bits; content is hex or base64 text.
+SecretKey load_secret_key_file(const std::string& path, const std::string& label);
+// Creates a new random secret file with mode 0600 (O_EXCL: never overwrites an existing one).
+void create_secret_key_file(const std::string& path, const std::string& label);
+
 // Master key from a file: refuses (KeyError naming the path and the mode) unless the file is a
 // regular file without any group/other permission bits; content is hex or base64 text.
 SecretKey load_master_key_file(const std::string& path);

@@ -176,6 +176,11 @@ void write_bytes_atomic(const std::string& path, const std::vector<std::uint8_t>
 
 }  // namespace
 
+Mesh read_named_mesh(const std::vector<std::uint8_t>& bytes, const std::string& name) {
+  std::map<std::string, std::string> metadata;
+  return parse_input(bytes, name, &metadata);
+}
+
 std::string output_base_for(const Config& cfg, const std::string& customer, const std::string& name,
                             const std::string& copy_key) {
   // The tag names the copy (unique per idempotency key) without revealing its payload: two jobs

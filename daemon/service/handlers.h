@@ -16,6 +16,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "meshio/mesh.h"
 #include "service/config.h"
 #include "service/context_cache.h"
 #include "store/store.h"
@@ -42,6 +43,10 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
 // contexts: where resynchronisation contexts are kept between uses (null: built for each use).
 store::JobRecords run_detect(store::Store& st, const store::Job& job, const HandlerContext& ctx,
                              ContextCache* contexts = nullptr);
+
+// A mesh file's bytes parsed by the format its name's extension gives (a .mmc stream decoded);
+// PermanentError naming the file and the reason when they cannot be.
+Mesh read_named_mesh(const std::vector<std::uint8_t>& bytes, const std::string& name);
 
 // Submitting: the file's bytes go into the blob store first (so the job does not depend on the
 // file staying where it is), then the job is enqueued with an idempotency key derived from what

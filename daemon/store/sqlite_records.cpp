@@ -200,6 +200,14 @@ std::vector<Detection> SqliteStore::list_detections(int limit) {
   return out;
 }
 
+std::optional<Detection> SqliteStore::get_detection(std::int64_t id) {
+  std::lock_guard<std::mutex> l(m_);
+  Stmt q(db_, sel(kDetectionCols, "FROM detections WHERE id = ?").c_str());
+  q.bind(1, id);
+  if (!q.step()) return std::nullopt;
+  return read_detection(q);
+}
+
 std::int64_t SqliteStore::append_audit(const NewAudit& a) {
   std::lock_guard<std::mutex> l(m_);
   Tx tx(db_);

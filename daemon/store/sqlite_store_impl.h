@@ -207,6 +207,7 @@ class SqliteStore final : public Store {
   Detection record_detection(const NewDetection& d) override;
 
   std::vector<Detection> list_detections(int limit) override;
+  std::optional<Detection> get_detection(std::int64_t id) override;
 
   // ------------------------------------------------------------ audit
   std::int64_t append_audit(const NewAudit& a) override;

@@ -276,6 +276,7 @@ class Store {
                                               int limit = 1000) = 0;
   virtual Detection record_detection(const NewDetection& d) = 0;
   virtual std::vector<Detection> list_detections(int limit = 1000) = 0;
+  virtual std::optional<Detection> get_detection(std::int64_t id) = 0;
 
   // Audit log.
   virtual std::int64_t append_audit(const NewAudit& a) = 0;

@@ -237,7 +237,7 @@ int Image::text_width(const std::string& text, int scale) {
   return static_cast<int>(text.size()) * 6 * std::max(scale, 1) - std::max(scale, 1);
 }
 
-void Image::write_png(const std::string& path) const {
+std::vector<std::uint8_t> Image::png() const {
   png_image image{};
   image.version = PNG_IMAGE_VERSION;
   image.width = static_cast<png_uint_32>(width_);
@@ -245,12 +245,22 @@ void Image::write_png(const std::string& path) const {
   image.format = PNG_FORMAT_RGB;
   png_alloc_size_t size = 0;
   if (!png_image_write_to_memory(&image, nullptr, &size, 0, pixels_.data(), 0, nullptr))
-    throw std::runtime_error(path + ": PNG encoding failed: " + image.message);
+    throw std::runtime_error(std::string("PNG encoding failed: ") + image.message);
   std::vector<std::uint8_t> buffer(size);
   if (!png_image_write_to_memory(&image, buffer.data(), &size, 0, pixels_.data(), 0, nullptr))
-    throw std::runtime_error(path + ": PNG encoding failed: " + image.message);
+    throw std::runtime_error(std::string("PNG encoding failed: ") + image.message);
   png_image_free(&image);
+  buffer.resize(size);
+  return buffer;
+}
 
+void Image::write_png(const std::string& path) const {
+  std::vector<std::uint8_t> buffer;
+  try {
+    buffer = png();
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(path + ": " + e.what());
+  }
   try {
     support::write_file_atomic(path, buffer);
   } catch (const std::system_error& e) {

@@ -69,6 +69,8 @@ class Image {
   // Writes a PNG (8-bit RGB) to a temporary file beside path and renames it into place.
   // Throws std::runtime_error naming the path on failure, leaving no partial file.
   void write_png(const std::string& path) const;
+  // The same PNG in memory (for pages that embed their pictures).
+  std::vector<std::uint8_t> png() const;
 
   const std::vector<std::uint8_t>& rgb() const { return pixels_; }
 

@@ -75,7 +75,10 @@ Image render_mesh(const Mesh& mesh, const Camera& camera, const RenderOptions& o
 
   // Light from the viewer's upper left, two-sided so inconsistently oriented faces still shade.
   const Eigen::Vector3d light = (-0.45 * right + 0.55 * view_up + 1.0 * eye).normalized();
-  for (const auto& f : mesh.faces) {
+  const bool per_face = options.face_colours.size() == mesh.faces.size();
+  for (size_t fi = 0; fi < mesh.faces.size(); ++fi) {
+    const auto& f = mesh.faces[fi];
+    const Rgb base = per_face ? options.face_colours[fi] : options.surface;
     Eigen::Vector3d normal = Eigen::Vector3d::Zero();  // Newell's method: robust for polygons
     for (size_t k = 0; k < f.size(); ++k) {
       const Eigen::Vector3d p = mesh.points.row(f[k]).transpose();
@@ -85,9 +88,9 @@ Image render_mesh(const Mesh& mesh, const Camera& camera, const RenderOptions& o
     const double len = normal.norm();
     if (!(len > 0) || !std::isfinite(len)) continue;
     const double shade = 0.25 + 0.75 * std::abs(normal.dot(light) / len);
-    const Rgb c{static_cast<std::uint8_t>(std::min(255.0, options.surface.r * shade)),
-                static_cast<std::uint8_t>(std::min(255.0, options.surface.g * shade)),
-                static_cast<std::uint8_t>(std::min(255.0, options.surface.b * shade))};
+    const Rgb c{static_cast<std::uint8_t>(std::min(255.0, base.r * shade)),
+                static_cast<std::uint8_t>(std::min(255.0, base.g * shade)),
+                static_cast<std::uint8_t>(std::min(255.0, base.b * shade))};
     for (size_t k = 1; k + 1 < f.size(); ++k)
       img.fill_triangle(screen[f[0]], screen[f[k]], screen[f[k + 1]], c);
   }

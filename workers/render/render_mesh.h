@@ -4,6 +4,7 @@
 #pragma once
 #include <Eigen/Core>
 #include <optional>
+#include <vector>
 
 #include "meshio/mesh.h"
 #include "render/image.h"
@@ -25,6 +26,7 @@ struct RenderOptions {
   int width = 800, height = 600;
   Rgb background = colours::white;
   Rgb surface = {175, 190, 215};
+  std::vector<Rgb> face_colours;  // one per face (a heat map) instead of `surface`; else ignored
   bool draw_wire = false;       // every polygon edge in dark grey
   bool draw_creases = true;     // mesh.creases in red, two pixels wide
   bool draw_corners = false;    // mesh.corners as small red squares
