@@ -3,7 +3,8 @@
 # installs what is missing, builds, starts the meshmarkd daemon on a temporary home and drop
 # folder, protects three parts for customers alice and bob (compress, watermark, write the .mmc
 # stream and the decoded mesh), leaks bob's decoded copy with noise, drops it and the unmarked
-# original into detect/ and prints the verdicts; then stops the daemon with SIGTERM (drain).
+# original into detect/ and prints the verdicts, and the signed evidence package the daemon writes
+# for the attribution (verified); then stops the daemon with SIGTERM (drain).
 # DEMO_DIR=folder keeps everything there (default: a fresh temporary folder, printed at the end).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -47,6 +48,7 @@ cat >"$D/meshmarkd.json" <<EOF
   "home": "home", "drop_dir": "drop", "output_dir": "out",
   "workers": 2, "poll_interval_ms": 200, "settle_ms": 500,
   "output_format": "stl",
+  "evidence": {"auto": true},
   "log_file": "meshmarkd.log"
 }
 EOF
@@ -115,6 +117,15 @@ for name, expect in (("leak.stl", "bob"), ("original.off", None)):
     ok = ok and r.get("customer") == expect
 sys.exit(0 if ok else 1)
 EOF
+
+echo "== evidence package for the legal team (docs/evidence.md)"
+packaged() { ls "$D"/out/evidence/*/statement.dsse.json >/dev/null 2>&1; }
+wait_for "the evidence package" 120 packaged
+pkg=$(dirname "$(ls "$D"/out/evidence/*/statement.dsse.json | head -1)")
+ls "$pkg"
+"$BUILD/daemon/meshmark" evidence pubkey --home "$D/home" >"$D/signing-public-key.txt"
+"$BUILD/daemon/meshmark" verify "$pkg" --pubkey "$D/signing-public-key.txt" --file "$D/parts/leak.stl" | tail -n 2
+echo "open $pkg/report.html in a browser"
 
 echo "== stop meshmarkd (SIGTERM: finish running jobs, then exit)"
 kill -TERM "$pid"

@@ -1,9 +1,11 @@
 // Evidence for legal teams: `evidence DETECTION OUT_DIR` writes a detection's signed package,
 // `evidence pubkey` prints the installation's signing public key, `verify PACKAGE` checks a
-// package (signature, every hash, the timestamp) and names what failed. docs/evidence.md.
+// package (signature, every hash, the timestamp) and names what failed, `reproduce DETECTION`
+// recomputes a detection and compares it with its record. docs/evidence.md.
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
 #include "service/evidence_package.h"
@@ -91,6 +93,33 @@ void run_verify(const VerifyArgs& a) {
   std::printf("%s: verifies\n", a.package.c_str());
 }
 
+void run_reproduce(const std::string& home_option, std::int64_t id) {
+  auto st = store::open_home(store::resolve_home(home_option), true);  // the customer keys
+  service::Reproduction r;
+  try {
+    r = service::reproduce_detection(*st, id);
+  } catch (const std::runtime_error& e) {
+    throw CommandFailed(1, e.what());
+  }
+  const auto rec = nlohmann::json::parse(r.recorded_json), now = nlohmann::json::parse(r.recomputed_json);
+  std::printf("detection %lld recomputed from the stored records\n", static_cast<long long>(id));
+  std::printf("  verdict          %s (recorded %s)\n", now["verdict"].get<std::string>().c_str(),
+              rec["verdict"].get<std::string>().c_str());
+  std::printf("  corrected p      %s (recorded %s)\n", now["p_value"].dump().c_str(), rec["p_value"].dump().c_str());
+  for (const auto& c : now["details"].value("candidates", nlohmann::json::array()))
+    for (const auto& s : c.value("copies", nlohmann::json::array()))
+      std::printf("  copy %-6lld     corrected p %s, sign -log10 p %s, matched -log10 p %s\n",
+                  static_cast<long long>(s.value("copy_id", 0LL)), s["p_value"].dump().c_str(),
+                  s["sign_neg_log10_p"].dump().c_str(), s["matched_neg_log10_p"].dump().c_str());
+  if (r.identical()) {
+    std::printf("identical: all %d numbers and every field as recorded, bit for bit\n", r.numbers_compared);
+    return;
+  }
+  for (const auto& d : r.differences) std::printf("DIFFERS  %s\n", d.c_str());
+  throw CommandFailed(1, "detection " + std::to_string(id) + ": " + std::to_string(r.differences.size()) +
+                             " field(s) differ from the record");
+}
+
 }  // namespace
 
 void add_evidence_commands(CLI::App& app) {
@@ -114,6 +143,13 @@ void add_evidence_commands(CLI::App& app) {
   ve->add_option("--file", v->files, "a referenced file at hand (suspect, original, issued copy) to check");
   ve->add_option("--tsa-ca", v->tsa_ca, "CA certificate (PEM) of the time-stamping authority");
   ve->callback([v] { refusing_store_errors([v] { run_verify(*v); }); });
+
+  auto rh = std::make_shared<std::string>();
+  auto rid = std::make_shared<std::int64_t>(0);
+  auto* re = app.add_subcommand("reproduce", "Recompute a stored detection and compare it with its record");
+  re->add_option("detection", *rid, "detection id (meshmark detections lists them)")->required()->check(CLI::PositiveNumber);
+  re->add_option("--home", *rh, "meshmark home folder (default: $MESHMARK_HOME or ./meshmark-home)");
+  re->callback([rh, rid] { refusing_store_errors([rh, rid] { run_reproduce(*rh, *rid); }); });
 }
 
 }  // namespace mm::cli

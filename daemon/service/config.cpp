@@ -132,7 +132,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
   cfg.source = source;
   c.known(j, "", {"home", "drop_dir", "output_dir", "master_key_file", "workers", "lease_seconds",
                   "heartbeat_seconds", "max_attempts", "shutdown_grace_seconds", "poll_interval_ms",
-                  "settle_ms", "use_inotify", "output_format", "watermark", "compression", "detect", "log_level",
+                  "settle_ms", "use_inotify", "output_format", "watermark", "compression", "detect", "evidence", "log_level",
                   "log_file", "$comment"});
   c.path(j, "home", cfg.home, true);
   c.path(j, "drop_dir", cfg.drop_dir, true);
@@ -201,6 +201,25 @@ Config parse_config(const std::string& text, const std::string& source, const st
       c.number(d, "detect.", "p_threshold", cfg.p_threshold, 0, 0.01, true);
       c.integer(d, "detect.", "max_candidates", cfg.max_candidates, 1, 100);
       c.integer(d, "detect.", "context_cache_mb", cfg.context_cache_mb, 0, 1048576);
+    }
+  }
+  if (j.contains("evidence")) {
+    const json& e = j["evidence"];
+    if (!e.is_object()) {
+      c.error("evidence", "must be an object");
+    } else {
+      c.known(e, "evidence.", {"auto", "pdf", "tsa_url", "tsa_ca_file"});
+      c.boolean(e, "evidence.", "auto", cfg.evidence_auto);
+      c.boolean(e, "evidence.", "pdf", cfg.evidence_pdf);
+      c.string(e, "evidence.", "tsa_url", cfg.tsa_url);
+      if (!cfg.tsa_url.empty() && cfg.tsa_url.rfind("http://", 0) != 0 && cfg.tsa_url.rfind("https://", 0) != 0)
+        c.error("evidence.tsa_url", "must be an http:// or https:// URL");
+      c.string(e, "evidence.", "tsa_ca_file", cfg.tsa_ca_file);
+      if (!cfg.tsa_ca_file.empty()) {
+        fs::path p(cfg.tsa_ca_file);
+        if (p.is_relative() && !base_dir.empty()) p = fs::path(base_dir) / p;
+        cfg.tsa_ca_file = p.lexically_normal().string();
+      }
     }
   }
   if (cfg.heartbeat_seconds * 2 > cfg.lease_seconds)
@@ -274,6 +293,10 @@ std::map<std::string, std::string> flatten(const Config& c) {
           {"detect.p_threshold", num(c.p_threshold)},
           {"detect.max_candidates", std::to_string(c.max_candidates)},
           {"detect.context_cache_mb", std::to_string(c.context_cache_mb)},
+          {"evidence.auto", c.evidence_auto ? "true" : "false"},
+          {"evidence.pdf", c.evidence_pdf ? "true" : "false"},
+          {"evidence.tsa_url", c.tsa_url},
+          {"evidence.tsa_ca_file", c.tsa_ca_file},
           {"log_level", c.log_level},
           {"log_file", c.log_file}};
 }

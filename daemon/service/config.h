@@ -45,6 +45,12 @@ struct Config {
   // detect.context_cache_mb: resynchronisation contexts kept between detect jobs, shared by the
   // workers (service/context_cache.h); contexts in use are never evicted.
   int context_cache_mb = 512;
+  // Evidence packages (docs/evidence.md): evidence.auto writes one for every attributed detection
+  // into <output_dir>/evidence/<case id>/ (an `evidence` job that the detect job's completion
+  // enqueues); evidence.pdf prints it with Chromium; evidence.tsa_url / tsa_ca_file timestamp it.
+  bool evidence_auto = false;
+  bool evidence_pdf = true;
+  std::string tsa_url, tsa_ca_file;
   // Logging.
   std::string log_level = "info";  // trace debug info warn error critical off
   std::string log_file;            // "" = stderr (journald under systemd)

@@ -104,6 +104,76 @@ struct Subject {
 
 }  // namespace
 
+namespace {
+
+// The record as compared: the row's fields and its details, without the wall time.
+json comparable(const store::NewDetection& d) {
+  json details = parsed(d.details_json);
+  details.erase("seconds");
+  return {{"verdict", d.verdict},
+          {"asset_id", d.asset_id ? json(*d.asset_id) : json(nullptr)},
+          {"copy_id", d.copy_id ? json(*d.copy_id) : json(nullptr)},
+          {"customer_id", d.customer_id ? json(*d.customer_id) : json(nullptr)},
+          {"correlation", d.correlation ? json(*d.correlation) : json(nullptr)},
+          {"p_value", d.p_value ? json(*d.p_value) : json(nullptr)},
+          {"decoded_payload_hex", d.decoded_payload_hex},
+          {"resync_method", d.resync_method},
+          {"details", details}};
+}
+
+int count_numbers(const json& j) {
+  if (j.is_number()) return 1;
+  int n = 0;
+  if (j.is_structured())
+    for (const auto& e : j) n += count_numbers(e);
+  return n;
+}
+
+}  // namespace
+
+Reproduction reproduce_detection(store::Store& st, std::int64_t detection_id) {
+  const std::string what = "detection " + std::to_string(detection_id);
+  const auto det = st.get_detection(detection_id);
+  if (!det) throw std::runtime_error("no " + what + " in the store");
+  if (!st.blobs().contains(det->suspect_sha256))
+    throw std::runtime_error(what + ": the suspect's bytes (SHA-256 " + det->suspect_sha256 +
+                             ") are not in the blob store, so it cannot be recomputed");
+  const json details = parsed(det->details_json);
+  DetectParameters params;
+  const json recorded_params = details.value("parameters", json::object());
+  params.p_threshold = recorded_params.value("p_threshold", details.value("p_threshold", params.p_threshold));
+  params.max_candidates = recorded_params.value("max_candidates", params.max_candidates);
+  jobs::Suspect suspect;
+  suspect.name = det->suspect_name;
+  suspect.sha256 = det->suspect_sha256;
+  suspect.mesh = read_named_mesh(st.blobs().get(det->suspect_sha256), det->suspect_name, &suspect.stream_metadata);
+  const DetectionRecord now = detect_record(st, suspect, params);
+
+  json before = comparable(*det), after = comparable(now.detection);
+  // Who ran it is recorded, not recomputed: a newer build reproducing an old detection is the point.
+  for (json* j : {&before, &after})
+    if ((*j)["details"].contains("parameters")) {
+      (*j)["details"]["parameters"].erase("meshmark_version");
+      (*j)["details"]["parameters"].erase("build_sha256");
+    }
+  // Records older than these fields ran with the p threshold they state and the default
+  // candidate count, which is what was used now.
+  for (const char* k : {"parameters", "reason"})
+    if (!before["details"].contains(k)) after["details"].erase(k);
+  Reproduction r;
+  r.recorded_json = before.dump();
+  r.recomputed_json = after.dump();
+  r.numbers_compared = count_numbers(before);
+  for (const auto& op : json::diff(before, after)) {
+    const std::string path = op.value("path", "");
+    const json::json_pointer ptr(path);
+    const std::string was = before.contains(ptr) ? before[ptr].dump() : "absent";
+    const std::string is = after.contains(ptr) ? after[ptr].dump() : "absent";
+    r.differences.push_back(path + ": " + was + " recorded, " + is + " now");
+  }
+  return r;
+}
+
 std::string signing_key_path(const store::HomePaths& home) { return home.root + "/signing.key"; }
 std::string signing_public_dir(const store::HomePaths& home) { return home.root + "/signing-keys"; }
 

@@ -65,6 +65,19 @@ VerifyReport verify_evidence_package(const std::string& dir, const std::vector<k
                                      const std::vector<std::string>& referenced = {},
                                      const store::BlobStore* blobs = nullptr, const std::string& tsa_ca_file = "");
 
+// A stored detection computed again from the stored records alone (the suspect from the blob
+// store, the copies, keys and polyhedra from the store, the parameters it recorded), compared
+// field by field with what was recorded (every number of every copy; its wall time aside).
+struct Reproduction {
+  std::string recorded_json, recomputed_json;  // the compared records
+  std::vector<std::string> differences;        // "/candidates/0/copies/1/matched_statistic: 12.5 recorded, 12.4 now"
+  int numbers_compared = 0;
+  bool identical() const { return differences.empty(); }
+};
+// Throws std::runtime_error naming the detection and what is missing (no such detection, the
+// suspect's bytes not in the blob store).
+Reproduction reproduce_detection(store::Store& st, std::int64_t detection_id);
+
 // <home>/signing.key and <home>/signing-keys/.
 std::string signing_key_path(const store::HomePaths& home);
 std::string signing_public_dir(const store::HomePaths& home);

@@ -22,7 +22,9 @@
 #include "jobs/prepared_asset.h"
 #include "jobs/protect.h"
 #include "meshio/read_mesh.h"
+#include "service/build_info.h"
 #include "service/detection_store.h"
+#include "service/evidence_package.h"
 #include "support/atomic_file.h"
 #include "support/hex.h"
 #include "support/sha256.h"
@@ -176,9 +178,10 @@ void write_bytes_atomic(const std::string& path, const std::vector<std::uint8_t>
 
 }  // namespace
 
-Mesh read_named_mesh(const std::vector<std::uint8_t>& bytes, const std::string& name) {
+Mesh read_named_mesh(const std::vector<std::uint8_t>& bytes, const std::string& name,
+                     std::map<std::string, std::string>* stream_metadata) {
   std::map<std::string, std::string> metadata;
-  return parse_input(bytes, name, &metadata);
+  return parse_input(bytes, name, stream_metadata ? stream_metadata : &metadata);
 }
 
 std::string output_base_for(const Config& cfg, const std::string& customer, const std::string& name,
@@ -293,19 +296,11 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   return rec;
 }
 
-store::JobRecords run_detect(store::Store& st, const store::Job& job, const HandlerContext& ctx,
-                             ContextCache* contexts) {
-  const Config& cfg = ctx.config;
-  if (contexts) contexts->set_budget(static_cast<std::size_t>(cfg.context_cache_mb) << 20);
-  json p = parse_payload(job);
-  jobs::Suspect suspect;
-  suspect.name = fs::path(str_field(p, "name", job)).filename().string();
-  auto bytes = input_bytes(st, p, job, &suspect.sha256);
-  suspect.mesh = parse_input(bytes, suspect.name, &suspect.stream_metadata);
-
+DetectionRecord detect_record(store::Store& st, const jobs::Suspect& suspect, const DetectParameters& params,
+                              ContextCache* contexts) {
   jobs::DetectOptions options;
-  options.p_threshold = cfg.p_threshold;
-  options.max_candidates = cfg.max_candidates;
+  options.p_threshold = params.p_threshold;
+  options.max_candidates = params.max_candidates;
   if (contexts)
     options.contexts = [contexts](const std::string& key, const std::function<ResyncContext()>& build) {
       return contexts->get(key, build);
@@ -337,7 +332,10 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
   details["match"] = det.match;
   details["copies_tried"] = det.copies_tried;
   details["seconds"] = seconds;
-  details["p_threshold"] = cfg.p_threshold;
+  details["p_threshold"] = params.p_threshold;
+  // What `meshmark reproduce` runs the detection with again, and what ran it.
+  details["parameters"] = {{"p_threshold", params.p_threshold}, {"max_candidates", params.max_candidates},
+                           {"meshmark_version", meshmark_version()}, {"build_sha256", build_sha256()}};
   details["candidates"] = json::array();
   for (const auto& t : det.tried) {
     json cj{{"asset_id", t.asset_id},
@@ -391,12 +389,43 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
   details["attributed"] = attributed;
   d.details_json = details.dump();
 
+  if (!det.reason.empty()) details["reason"] = det.reason;
+  d.details_json = details.dump();
+  return {d, det.reason};
+}
+
+store::JobRecords run_detect(store::Store& st, const store::Job& job, const HandlerContext& ctx,
+                             ContextCache* contexts) {
+  const Config& cfg = ctx.config;
+  if (contexts) contexts->set_budget(static_cast<std::size_t>(cfg.context_cache_mb) << 20);
+  json p = parse_payload(job);
+  jobs::Suspect suspect;
+  suspect.name = fs::path(str_field(p, "name", job)).filename().string();
+  auto bytes = input_bytes(st, p, job, &suspect.sha256);
+  suspect.mesh = parse_input(bytes, suspect.name, &suspect.stream_metadata);
+  const DetectionRecord dr = detect_record(st, suspect, {cfg.p_threshold, cfg.max_candidates}, contexts);
+  const store::NewDetection& d = dr.detection;
+  const json details = json::parse(d.details_json);
+  const json attributed = details["attributed"];
+  const std::string& name = suspect.name;
+  const std::string& sha = suspect.sha256;
+  const int copies_tried = details.value("copies_tried", 0);
+  const std::string match = details.value("match", "");
   store::JobRecords rec;
   rec.detections.push_back(d);
+  if (cfg.evidence_auto && d.verdict == "attributed") {
+    // Enqueued in the transaction that records the detection: a crash loses neither.
+    store::JobSpec ev;
+    ev.kind = "evidence";
+    ev.payload_json = json{{"detect_job", job.id}}.dump();
+    ev.idempotency_key = "evidence:job:" + std::to_string(job.id);
+    ev.max_attempts = cfg.max_attempts;
+    rec.follow_ups.push_back(ev);
+  }
   rec.audit.push_back({ctx.worker_id, "detect", "job:" + std::to_string(job.id),
                        json{{"suspect_sha256", sha}, {"verdict", d.verdict}}.dump()});
-  json result{{"verdict", d.verdict}, {"suspect_sha256", sha}, {"copies_tried", det.copies_tried}, {"match", det.match}};
-  if (!det.reason.empty()) result["reason"] = det.reason;
+  json result{{"verdict", d.verdict}, {"suspect_sha256", sha}, {"copies_tried", copies_tried}, {"match", match}};
+  if (!dr.reason.empty()) result["reason"] = dr.reason;
   if (d.asset_id) result["asset_id"] = *d.asset_id;
   if (d.copy_id) result["copy_id"] = *d.copy_id;
   if (d.customer_id) {
@@ -411,14 +440,15 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
                         "best_matched_neg_log10_p"})
     if (details.contains(k)) result[std::string(k).substr(5)] = details[k];
   if (!d.decoded_payload_hex.empty()) result["decoded_payload"] = d.decoded_payload_hex;
-  if (best_t) {
-    result["resync_method"] = best_t->alignment.method;
-    result["resync_residual"] = best_t->alignment.residual;
+  const bool resynced = details.contains("resync_method");
+  if (resynced) {
+    result["resync_method"] = details["resync_method"];
+    result["resync_residual"] = details["resync_residual"];
   }
   rec.result_json = result.dump();
   spdlog::info("detect {}: {} (match: {}; {} copies tried; best corrected p {:.3g}; resync {} residual {:.3g})", name,
-               d.verdict, det.match.empty() ? "none" : det.match, det.copies_tried, d.p_value ? *d.p_value : 1.0,
-               best_t ? best_t->alignment.method : "none", best_t ? best_t->alignment.residual : 0.0);
+               d.verdict, match.empty() ? "none" : match, copies_tried, d.p_value ? *d.p_value : 1.0,
+               resynced ? d.resync_method : "none", resynced && details["resync_residual"].is_number() ? details["resync_residual"].get<double>() : 0.0);
   if (contexts) {
     const ContextCache::Stats cs = contexts->stats();
     spdlog::debug("resync contexts: {} held ({} in use), {:.1f} of {:.0f} MB; {} built, {} reused, {} evicted",
@@ -428,9 +458,48 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
   return rec;
 }
 
+store::JobRecords run_evidence(store::Store& st, const store::Job& job, const HandlerContext& ctx) {
+  const Config& cfg = ctx.config;
+  const json p = parse_payload(job);
+  if (!p.contains("detect_job") || !p["detect_job"].is_number_integer())
+    throw PermanentError("job " + std::to_string(job.id) + ": payload needs \"detect_job\" (an integer job id)");
+  const std::int64_t detect_job = p["detect_job"].get<std::int64_t>();
+  std::optional<store::Detection> det;
+  for (const auto& d : st.list_detections(kAllCopies))
+    if (d.job_id && *d.job_id == detect_job) det = d;
+  if (!det) throw PermanentError("job " + std::to_string(job.id) + ": detect job " + std::to_string(detect_job) +
+                                 " recorded no detection");
+  EvidenceOptions o;
+  o.chromium = cfg.evidence_pdf ? "" : "none";
+  o.tsa_url = cfg.tsa_url;
+  o.tsa_ca_file = cfg.tsa_ca_file;
+  const std::string case_id = "MM-" + std::to_string(det->id) + "-" + det->suspect_sha256.substr(0, 12);
+  const std::string out = (fs::path(cfg.output_dir) / "evidence" / case_id).string();
+  json result{{"detection_id", det->id}, {"package", out}};
+  store::JobRecords rec;
+  if (fs::exists(out / fs::path("statement.dsse.json"))) {
+    // An earlier attempt wrote it whole (the rename is the last step) and died before completing.
+    result["written_before"] = true;
+  } else {
+    fs::create_directories(fs::path(out).parent_path());
+    const EvidencePackage pkg = write_evidence_package(st, store::resolve_home(cfg.home), det->id, out, o);
+    result["files"] = pkg.files;
+    result["key_id"] = pkg.key_id;
+    if (!pkg.pdf_note.empty()) result["pdf_note"] = pkg.pdf_note;
+    result["timestamp"] = pkg.timestamp_note;
+  }
+  result["statement_sha256"] = support::sha256_file_hex(out + "/statement.json");
+  rec.audit.push_back({ctx.worker_id, "evidence.write", "detection:" + std::to_string(det->id),
+                       json{{"package", out}, {"statement_sha256", result["statement_sha256"]}}.dump()});
+  rec.result_json = result.dump();
+  spdlog::info("evidence for detection {}: {}", det->id, out);
+  return rec;
+}
+
 HandlerMap default_handlers() {
   HandlerMap m;
   m["protect"] = run_protect;
+  m["evidence"] = run_evidence;
   // One cache for every worker thread the map is handed to (copies share it).
   auto contexts = std::make_shared<ContextCache>(static_cast<std::size_t>(Config{}.context_cache_mb) << 20);
   m["detect"] = [contexts](store::Store& st, const store::Job& job, const HandlerContext& ctx) {

@@ -6,6 +6,7 @@
 //   protect: {"customer": "<name>", "input_sha256": "<blob>" | "input_path": "<abs path>",
 //             "name": "<file name, its extension gives the format>", "output_format": "stl"?}
 //   detect:  {"input_sha256": "<blob>" | "input_path": "<abs path>", "name": "<file name>"}
+//   evidence: {"detect_job": <id>} (enqueued by detect jobs when evidence.auto is set)
 //   noop:    {} (queue benchmarks)
 // A handler throws PermanentError for problems retrying cannot fix (malformed mesh, unknown
 // customer, bad payload): the job is discarded at once with that reason. Any other exception is
@@ -17,6 +18,7 @@
 #include <string>
 
 #include "meshio/mesh.h"
+#include "jobs/detect_suspect.h"
 #include "service/config.h"
 #include "service/context_cache.h"
 #include "store/store.h"
@@ -40,13 +42,32 @@ using HandlerMap = std::map<std::string, Handler>;
 HandlerMap default_handlers();
 
 store::JobRecords run_protect(store::Store& st, const store::Job& job, const HandlerContext& ctx);
+// evidence: {"detect_job": <id>}: the package of that job's detection, written to
+// <output_dir>/evidence/<case id>/ (service/evidence_package.h). Enqueued by detect jobs that
+// attribute when evidence.auto is set.
+store::JobRecords run_evidence(store::Store& st, const store::Job& job, const HandlerContext& ctx);
 // contexts: where resynchronisation contexts are kept between uses (null: built for each use).
 store::JobRecords run_detect(store::Store& st, const store::Job& job, const HandlerContext& ctx,
                              ContextCache* contexts = nullptr);
 
+// A detection as the detect job records it (details: every candidate, copy, statistic and the
+// parameters it ran with). The one computation behind detect jobs and `meshmark reproduce`.
+struct DetectParameters {
+  double p_threshold = 1e-9;
+  int max_candidates = 3;
+};
+struct DetectionRecord {
+  store::NewDetection detection;
+  std::string reason;  // why an inconclusive verdict names no one
+};
+DetectionRecord detect_record(store::Store& st, const jobs::Suspect& suspect, const DetectParameters& params,
+                              ContextCache* contexts = nullptr);
+
 // A mesh file's bytes parsed by the format its name's extension gives (a .mmc stream decoded);
-// PermanentError naming the file and the reason when they cannot be.
-Mesh read_named_mesh(const std::vector<std::uint8_t>& bytes, const std::string& name);
+// PermanentError naming the file and the reason when they cannot be. A stream's metadata goes
+// to stream_metadata when given.
+Mesh read_named_mesh(const std::vector<std::uint8_t>& bytes, const std::string& name,
+                     std::map<std::string, std::string>* stream_metadata = nullptr);
 
 // Submitting: the file's bytes go into the blob store first (so the job does not depend on the
 // file staying where it is), then the job is enqueued with an idempotency key derived from what

@@ -4,11 +4,17 @@
 namespace mm::store::sqlite_detail {
 
 EnqueueResult SqliteStore::enqueue(const JobSpec& spec, const std::string& actor) {
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  EnqueueResult r = insert_job(spec, actor);
+  tx.commit();
+  return r;
+}
+
+EnqueueResult SqliteStore::insert_job(const JobSpec& spec, const std::string& actor) {
   if (spec.kind.empty()) throw StoreError("enqueue: job kind is empty");
   if (spec.max_attempts < 1) throw StoreError("enqueue: max_attempts must be at least 1");
   require_json(spec.payload_json, "job payload");
-  std::lock_guard<std::mutex> l(m_);
-  Tx tx(db_);
   if (!spec.idempotency_key.empty()) {
     Stmt q(db_, sel(kJobCols, "FROM jobs WHERE idempotency_key = ?").c_str());
     if (q.bind(1, spec.idempotency_key).step()) return {read_job(q), false};
@@ -22,9 +28,7 @@ EnqueueResult SqliteStore::enqueue(const JobSpec& spec, const std::string& actor
   ins.bind(6, t).bind(7, spec.scheduled_at.value_or(t)).step();
   std::int64_t id = ins.i64(0);
   insert_audit({actor, "job.enqueue", "job:" + std::to_string(id), json{{"kind", spec.kind}}.dump()});
-  Job j = job_by_id(id).value();
-  tx.commit();
-  return {std::move(j), true};
+  return {job_by_id(id).value(), true};
 }
 
 std::optional<Job> SqliteStore::claim(const std::string& worker_id, Millis lease, const std::vector<std::string>& kinds) {
@@ -78,6 +82,7 @@ CompleteResult SqliteStore::complete(std::int64_t job_id, const std::string& wor
   for (const NewDetection& d : r.detections) out.detection_ids.push_back(insert_detection(d, job_id, worker_id));
   fault("complete.after_detections");
   for (const NewAudit& a : r.audit) insert_audit(a);
+  for (const JobSpec& f : r.follow_ups) insert_job(f, worker_id);
   insert_audit({worker_id, "job.complete", "job:" + std::to_string(job_id), "{}"});
   fault("complete.before_commit");
   tx.commit();

@@ -261,6 +261,8 @@ class SqliteStore final : public Store {
     if (opt_.fault_injection) opt_.fault_injection(point);
   }
 
+  EnqueueResult insert_job(const JobSpec& spec, const std::string& actor);  // inside a transaction
+
   LeaseLost lease_lost(std::int64_t job_id, const std::string& worker_id) {
     auto j = job_by_id(job_id);
     std::string state = j ? to_string(j->state) : "missing";

@@ -203,6 +203,7 @@ struct JobRecords {
   std::vector<NewCopy> copies;         // ON CONFLICT of the unique key: the existing copy is kept
   std::vector<NewDetection> detections;
   std::vector<NewAudit> audit;
+  std::vector<JobSpec> follow_ups;     // jobs this one's outcome calls for (idempotent by key)
   std::string result_json = "{}";
 };
 struct CompleteResult {

@@ -38,7 +38,8 @@ class Evidence : public ::testing::Test {
     leak = *s / "leak.off";
     const std::string cfg = *s / "meshmarkd.json";
     std::ofstream(cfg) << R"({"home": "home", "drop_dir": "drop", "output_dir": "out", "workers": 2,
-                              "log_level": "warn", "output_format": "off"})";
+                              "log_level": "warn", "output_format": "off",
+                              "evidence": {"auto": true, "pdf": false}})";
     fs::create_directories(*s / "drop");
     fs::create_directories(*s / "out");
     ASSERT_EQ(meshmark(*s, {"init", "--home", home}).code, 0);
@@ -185,6 +186,44 @@ TEST_F(Evidence, AddedFilesOtherKeysAndAlteredReferencedFilesFail) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("FAILED  issued-copy/"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("differs from the SHA-256 recorded"), std::string::npos) << r.out;
+}
+
+TEST_F(Evidence, ReproduceRecomputesTheDetectionBitForBitAndNamesAnyDifference) {
+  auto r = meshmark(*s, {"reproduce", std::to_string(detection), "--home", home});
+  EXPECT_EQ(r.code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("identical: all"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("verdict          attributed (recorded attributed)"), std::string::npos) << r.out;
+  // A record altered behind the store's back no longer reproduces, and the field is named.
+  const std::string db = home + "/meshmark.db";
+  ASSERT_EQ(std::system(("sqlite3 " + quote(db) + " \"UPDATE detections SET p_value = p_value * 2 WHERE id = " +
+                         std::to_string(detection) + "\"").c_str()), 0);
+  r = meshmark(*s, {"reproduce", std::to_string(detection), "--home", home});
+  ASSERT_EQ(std::system(("sqlite3 " + quote(db) + " \"UPDATE detections SET p_value = p_value / 2 WHERE id = " +
+                         std::to_string(detection) + "\"").c_str()), 0);
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("DIFFERS  /p_value"), std::string::npos) << r.out;
+  r = meshmark(*s, {"reproduce", "999", "--home", home});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("no detection 999"), std::string::npos) << r.err;
+}
+
+TEST_F(Evidence, TheDaemonWritesAPackageForEveryAttributedDetection) {
+  const fs::path dir = s->dir / "out/evidence";
+  ASSERT_TRUE(fs::exists(dir));
+  std::vector<fs::path> packages(fs::directory_iterator(dir), fs::directory_iterator{});
+  ASSERT_EQ(packages.size(), 1u);
+  EXPECT_EQ(packages[0].filename().string().rfind("MM-" + std::to_string(detection) + "-", 0), 0u);
+  EXPECT_FALSE(fs::exists(packages[0] / "report.pdf")) << "evidence.pdf false";
+  const auto r = meshmark(*s, {"verify", packages[0].string(), "--pubkey", *s / "pub.txt"});
+  EXPECT_EQ(r.code, 0) << r.out;
+  const auto jobs = json::parse(meshmark(*s, {"jobs", "list", "--home", home, "--json"}).out);
+  int evidence_jobs = 0;
+  for (const auto& j : jobs["jobs"])
+    if (j["kind"] == "evidence") {
+      ++evidence_jobs;
+      EXPECT_EQ(j["state"], "completed");
+    }
+  EXPECT_EQ(evidence_jobs, 1) << "one package per attributed detection, none for the protect jobs";
 }
 
 TEST_F(Evidence, RefusalsNameTheReason) {

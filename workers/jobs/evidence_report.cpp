@@ -283,7 +283,9 @@ std::string evidence_html(const json& pr, const std::vector<ReportPicture>& pict
       << escape(fa.value("commit", "")) << " on " << escape(fa.value("run", "")) << ".</p>\n";
   }
   h << "<p>How to check: <code>meshmark verify PACKAGE_DIR --pubkey KEY</code> checks the signature and every "
-       "hash, with the installation's public key (<code>meshmark evidence pubkey</code>).</p>\n</div>\n";
+       "hash, with the installation's public key (<code>meshmark evidence pubkey</code>); <code>meshmark reproduce "
+    << det.value("id", 0) << "</code> on the installation recomputes the detection from its records and "
+       "compares every number.</p>\n</div>\n";
 
   for (const auto& p : pictures)
     h << "<h2>" << escape(p.title) << "</h2>\n<figure><img id=\"pic-" << escape(p.id) << "\" alt=\""
