@@ -102,6 +102,54 @@ struct Subject {
   std::string name, sha256;
 };
 
+// A DSSE envelope of body, signed by signer.
+std::string dsse_envelope(const keys::SigningKey& signer, const std::string& body) {
+  const std::vector<std::uint8_t> sig = signer.sign(dsse_pae(kDssePayloadType, body));
+  const json envelope{{"payloadType", kDssePayloadType},
+                      {"payload", keys::to_base64(body)},
+                      {"signatures", json::array({json{{"keyid", signer.public_key().id()},
+                                                       {"sig", keys::to_base64(std::string(sig.begin(), sig.end()))}}})}};
+  return envelope.dump(2) + "\n";
+}
+
+// An envelope's payload and the trusted key that signed it; `error` says what failed instead.
+struct OpenedEnvelope {
+  std::string body, signer, error;
+};
+OpenedEnvelope open_envelope(const fs::path& file, const std::vector<keys::PublicKey>& trusted) {
+  OpenedEnvelope o;
+  const std::string name = file.filename().string();
+  json envelope;
+  try {
+    envelope = json::parse(read_file(file.string()));
+    if (envelope.value("payloadType", "") != kDssePayloadType) {
+      o.error = name + ": payload type is not " + std::string(kDssePayloadType);
+      return o;
+    }
+    o.body = keys::from_base64(envelope.at("payload").get<std::string>(), name + " payload");
+  } catch (const std::exception& e) {
+    o.error = name + ": unreadable envelope: " + e.what();
+    return o;
+  }
+  for (const auto& sj : envelope.value("signatures", json::array())) {
+    std::string sig;
+    try {
+      sig = keys::from_base64(sj.value("sig", ""), "signature");
+    } catch (const std::exception&) {
+      continue;
+    }
+    for (const auto& k : trusted)
+      if (sj.value("keyid", "") == k.id() &&
+          keys::signature_valid(k, dsse_pae(kDssePayloadType, o.body), std::vector<std::uint8_t>(sig.begin(), sig.end())))
+        o.signer = k.id();
+  }
+  if (trusted.empty())
+    o.error = name + ": no trusted public key given (meshmark evidence pubkey exports the installation's)";
+  else if (o.signer.empty())
+    o.error = name + ": signature not valid for any trusted key (the file was altered, or another key signed it)";
+  return o;
+}
+
 }  // namespace
 
 namespace {
@@ -438,12 +486,7 @@ EvidencePackage write_evidence_package(store::Store& st, const store::HomePaths&
     const std::string body = statement.dump(2) + "\n";
     support::write_file_atomic((tmp / "statement.json").string(), body, 0644);
     pkg.files.push_back("statement.json");
-    const std::vector<std::uint8_t> sig = signer.sign(dsse_pae(kDssePayloadType, body));
-    const json envelope{{"payloadType", kDssePayloadType},
-                        {"payload", keys::to_base64(body)},
-                        {"signatures", json::array({json{{"keyid", signer.public_key().id()},
-                                                         {"sig", keys::to_base64(std::string(sig.begin(), sig.end()))}}})}};
-    support::write_file_atomic((tmp / "statement.dsse.json").string(), envelope.dump(2) + "\n", 0644);
+    support::write_file_atomic((tmp / "statement.dsse.json").string(), dsse_envelope(signer, body), 0644);
     pkg.files.push_back("statement.dsse.json");
 
     if (options.tsa_url.empty()) {
@@ -466,6 +509,17 @@ EvidencePackage write_evidence_package(store::Store& st, const store::HomePaths&
       fs::remove(query);
       fs::remove(log);
       pkg.files.push_back("statement.tsr");
+      // The reply signed too, so that no byte of the package escapes a signature (an authority's
+      // reply carries certificates its own signature does not cover).
+      const std::string tsr_bytes = read_file(reply);
+      const json tsr_statement{
+          {"_type", kStatementType},
+          {"subject", json::array({json{{"name", "statement.tsr"}, {"digest", {{"sha256", sha256_of(tsr_bytes)}}}}})},
+          {"predicateType", kTimestampPredicateType},
+          {"predicate", {{"statement_sha256", sha256_of(body)}, {"authority", options.tsa_url}}}};
+      support::write_file_atomic((tmp / "statement.tsr.dsse.json").string(),
+                                 dsse_envelope(signer, tsr_statement.dump(2) + "\n"), 0644);
+      pkg.files.push_back("statement.tsr.dsse.json");
       pkg.timestamp_note = "RFC 3161 timestamp from " + options.tsa_url;
     }
     if (fs::exists(out)) fs::remove(out);  // the empty folder checked above
@@ -478,46 +532,67 @@ EvidencePackage write_evidence_package(store::Store& st, const store::HomePaths&
   return pkg;
 }
 
+namespace {
+
+// The timestamp reply: its SHA-256 as signed in statement.tsr.dsse.json, then the reply itself
+// against the authority's CA certificate when one is given.
+void check_timestamp(const fs::path& d, const std::vector<keys::PublicKey>& trusted, const std::string& tsa_ca_file,
+                     VerifyReport& r) {
+  const std::string tsr = (d / "statement.tsr").string();
+  if (!fs::exists(tsr)) {
+    r.failed.push_back("statement.tsr: the statement says a timestamp was requested, but it is missing");
+    return;
+  }
+  const OpenedEnvelope te = open_envelope(d / "statement.tsr.dsse.json", trusted);
+  const json ts = json::parse(te.body.empty() ? "null" : te.body, nullptr, false);
+  std::string want;
+  if (ts.is_object() && ts.value("predicateType", "") == kTimestampPredicateType && !ts["subject"].empty())
+    want = ts["subject"][0].value("digest", json::object()).value("sha256", "");
+  if (!te.error.empty())
+    r.failed.push_back(te.error);
+  else if (want != support::sha256_file_hex(tsr))
+    r.failed.push_back("statement.tsr: SHA-256 differs from the signed record of it (the file was altered)");
+  else
+    r.passed.push_back("statement.tsr: SHA-256 matches its signed record");
+  if (tsa_ca_file.empty()) {
+    r.skipped.push_back("statement.tsr: present; its authority not checked (give the authority's CA certificate)");
+    return;
+  }
+  const std::string log =
+      (fs::temp_directory_path() / ("meshmark-verify-" + std::to_string(::getpid()) + ".log")).string();
+  const int rc = run_program(
+      {"openssl", "ts", "-verify", "-data", (d / "statement.json").string(), "-in", tsr, "-CAfile", tsa_ca_file}, log);
+  std::string when;
+  if (rc == 0 && run_program({"openssl", "ts", "-reply", "-in", tsr, "-text"}, log) == 0) {
+    std::istringstream text(read_file(log));
+    for (std::string line; std::getline(text, line);)
+      if (line.rfind("Time stamp: ", 0) == 0) when = " (time " + line.substr(12) + ")";
+  }
+  std::error_code ec;
+  fs::remove(log, ec);
+  if (rc == 0)
+    r.passed.push_back("statement.tsr: RFC 3161 timestamp of statement.json verifies against " + tsa_ca_file + when);
+  else
+    r.failed.push_back("statement.tsr: the timestamp does not verify for statement.json against " + tsa_ca_file);
+}
+
+}  // namespace
+
 VerifyReport verify_evidence_package(const std::string& dir, const std::vector<keys::PublicKey>& trusted,
                                      const std::vector<std::string>& referenced, const store::BlobStore* blobs,
                                      const std::string& tsa_ca_file) {
   VerifyReport r;
   const fs::path d(dir);
-  std::string env_text, body;
-  json envelope;
-  try {
-    env_text = read_file((d / "statement.dsse.json").string());
-    envelope = json::parse(env_text);
-    if (envelope.value("payloadType", "") != kDssePayloadType)
-      r.failed.push_back("statement.dsse.json: payload type is not " + std::string(kDssePayloadType));
-    body = keys::from_base64(envelope.at("payload").get<std::string>(), "statement.dsse.json payload");
-  } catch (const std::exception& e) {
-    r.failed.push_back(std::string("statement.dsse.json: unreadable envelope: ") + e.what());
+  const OpenedEnvelope env = open_envelope(d / "statement.dsse.json", trusted);
+  if (env.body.empty()) {
+    r.failed.push_back(env.error);
     return r;
   }
-  bool signed_ok = false;
-  std::string signer;
-  for (const auto& s : envelope.value("signatures", json::array())) {
-    std::string sig;
-    try {
-      sig = keys::from_base64(s.value("sig", ""), "signature");
-    } catch (const std::exception&) {
-      continue;
-    }
-    for (const auto& k : trusted)
-      if (s.value("keyid", "") == k.id() &&
-          keys::signature_valid(k, dsse_pae(kDssePayloadType, body), std::vector<std::uint8_t>(sig.begin(), sig.end()))) {
-        signed_ok = true;
-        signer = k.id();
-      }
-  }
-  if (trusted.empty())
-    r.failed.push_back("signature: no trusted public key given (meshmark evidence pubkey exports the installation's)");
-  else if (signed_ok)
-    r.passed.push_back("signature: valid, by trusted key " + signer);
+  const std::string& body = env.body;
+  if (env.error.empty())
+    r.passed.push_back("signature: valid, by trusted key " + env.signer);
   else
-    r.failed.push_back("signature: not valid for any trusted key (the statement or its envelope was altered, or "
-                       "another key signed it)");
+    r.failed.push_back("signature: " + env.error);
 
   std::string on_disk;
   try {
@@ -551,7 +626,10 @@ VerifyReport verify_evidence_package(const std::string& dir, const std::vector<k
   for (const auto& f : statement["predicate"].value("files", json::array()))
     location[f.value("role", "") + "/" + fs::path(f.value("name", "")).filename().string()] = f.value("location", "");
   std::set<std::string> listed = {"statement.json", "statement.dsse.json"};
-  if (statement["predicate"].value("timestamp", json::object()).value("requested", false)) listed.insert("statement.tsr");
+  if (statement["predicate"].value("timestamp", json::object()).value("requested", false)) {
+    listed.insert("statement.tsr");
+    listed.insert("statement.tsr.dsse.json");
+  }
   for (const auto& s : statement.value("subject", json::array())) {
     const std::string name = s.value("name", "");
     const std::string want = s.value("digest", json::object()).value("sha256", "");
@@ -589,23 +667,7 @@ VerifyReport verify_evidence_package(const std::string& dir, const std::vector<k
     if (!listed.count(e.path().filename().string()))
       r.failed.push_back(e.path().filename().string() + ": in the package but not in the signed statement");
 
-  if (listed.count("statement.tsr")) {
-    if (!fs::exists(d / "statement.tsr")) {
-      r.failed.push_back("statement.tsr: the statement says a timestamp was requested, but it is missing");
-    } else if (tsa_ca_file.empty()) {
-      r.skipped.push_back("statement.tsr: present; its authority not checked (give the authority's CA certificate)");
-    } else {
-      const std::string log = (fs::temp_directory_path() / ("meshmark-verify-" + std::to_string(::getpid()) + ".log")).string();
-      const int rc = run_program({"openssl", "ts", "-verify", "-data", (d / "statement.json").string(), "-in",
-                                  (d / "statement.tsr").string(), "-CAfile", tsa_ca_file}, log);
-      std::error_code ec;
-      fs::remove(log, ec);
-      if (rc == 0)
-        r.passed.push_back("statement.tsr: RFC 3161 timestamp of statement.json verifies against " + tsa_ca_file);
-      else
-        r.failed.push_back("statement.tsr: the timestamp does not verify for statement.json against " + tsa_ca_file);
-    }
-  }
+  if (listed.count("statement.tsr")) check_timestamp(d, trusted, tsa_ca_file, r);
   return r;
 }
 

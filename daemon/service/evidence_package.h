@@ -9,7 +9,9 @@
 //   statement.dsse.json  the statement signed (DSSE envelope, Ed25519, the installation's key)
 //   report.html          self-contained page, pictures embedded (jobs/evidence_report.h)
 //   report.pdf           the page printed by headless Chromium, when it is installed
-//   statement.tsr        an RFC 3161 timestamp of statement.json, when an authority is configured
+//   statement.tsr        an RFC 3161 timestamp of statement.json, when an authority is configured,
+//   statement.tsr.dsse.json  with its SHA-256 signed (the reply's certificates are not covered by
+//                        the authority's own signature)
 // The folder appears whole or not at all (written beside it, then renamed).
 //
 // verify_evidence_package() checks all of that and names what failed.
@@ -26,6 +28,7 @@ namespace mm::service {
 
 constexpr const char* kStatementType = "https://in-toto.io/Statement/v1";
 constexpr const char* kPredicateType = "https://meshmark.dev/detection-evidence/v1";
+constexpr const char* kTimestampPredicateType = "https://meshmark.dev/detection-evidence-timestamp/v1";
 constexpr const char* kDssePayloadType = "application/vnd.in-toto+json";
 
 struct EvidenceOptions {

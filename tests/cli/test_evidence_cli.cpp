@@ -4,6 +4,9 @@
 // installed (scripts/install-deps.sh installs it; under CI its absence fails the test).
 #include <gtest/gtest.h>
 #include <png.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <nlohmann/json.hpp>
@@ -170,7 +173,7 @@ TEST_F(Evidence, AddedFilesOtherKeysAndAlteredReferencedFilesFail) {
   std::ofstream(other / "pub.txt") << pub.out;
   r = meshmark(*s, {"verify", package, "--pubkey", other / "pub.txt"});
   EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.out.find("signature: not valid for any trusted key"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("signature not valid for any trusted key"), std::string::npos) << r.out;
   r = meshmark(*s, {"verify", package});
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("no trusted public key"), std::string::npos) << r.out;
@@ -224,6 +227,67 @@ TEST_F(Evidence, TheDaemonWritesAPackageForEveryAttributedDetection) {
       EXPECT_EQ(j["state"], "completed");
     }
   EXPECT_EQ(evidence_jobs, 1) << "one package per attributed detection, none for the protect jobs";
+}
+
+// A local time-stamping authority (tests/cli/local_tsa.py: openssl ts behind a localhost HTTP
+// server), stopped when the test ends.
+struct LocalTsa {
+  fs::path dir;
+  pid_t pid = -1;
+  explicit LocalTsa(const fs::path& d) : dir(d) {
+    pid = ::fork();
+    if (pid == 0) {
+      ::execlp("python3", "python3", LOCAL_TSA_PY, dir.c_str(), static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    for (int i = 0; i < 300 && !fs::exists(dir / "port"); ++i) ::usleep(100000);
+  }
+  ~LocalTsa() {
+    if (pid > 0) {
+      ::kill(pid, SIGTERM);
+      ::waitpid(pid, nullptr, 0);
+    }
+  }
+  std::string url() const { return "http://127.0.0.1:" + slurp((dir / "port").string()); }
+};
+
+TEST_F(Evidence, TrustedTimestampFromAnRfc3161AuthorityVerifiesAndTamperingFails) {
+  LocalTsa tsa(s->dir / "tsa");
+  ASSERT_TRUE(fs::exists(tsa.dir / "port")) << "the local authority did not start";
+  const std::string ca = (tsa.dir / "ca.pem").string(), dir = *s / "stamped";
+  auto r = meshmark(*s, {"evidence", std::to_string(detection), dir, "--home", home, "--no-pdf", "--tsa-url",
+                         tsa.url(), "--tsa-ca", ca});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(exists(dir + "/statement.tsr"));
+  const json st = json::parse(slurp(dir + "/statement.json"));
+  EXPECT_EQ(st["predicate"]["timestamp"]["requested"], true);
+  r = meshmark(*s, {"verify", dir, "--pubkey", *s / "pub.txt", "--tsa-ca", ca});
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("ok      statement.tsr: RFC 3161 timestamp of statement.json verifies"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("(time "), std::string::npos) << r.out;
+  // Without the authority's certificate the timestamp is reported as not checked.
+  r = meshmark(*s, {"verify", dir, "--pubkey", *s / "pub.txt"});
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("skipped statement.tsr: present; its authority not checked"), std::string::npos) << r.out;
+  // A flipped byte of the timestamp, or the timestamp removed, fails.
+  std::string tsr = slurp(dir + "/statement.tsr");
+  tsr[tsr.size() / 2] = static_cast<char>(tsr[tsr.size() / 2] ^ 0x01);
+  std::ofstream(dir + "/statement.tsr", std::ios::binary | std::ios::trunc) << tsr;
+  r = meshmark(*s, {"verify", dir, "--pubkey", *s / "pub.txt", "--tsa-ca", ca});
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("FAILED  statement.tsr: SHA-256 differs from the signed record"), std::string::npos) << r.out;
+  fs::remove(dir + "/statement.tsr");
+  r = meshmark(*s, {"verify", dir, "--pubkey", *s / "pub.txt"});
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("statement.tsr: the statement says a timestamp was requested, but it is missing"),
+            std::string::npos) << r.out;
+  // An authority that does not answer fails the package and leaves nothing behind.
+  r = meshmark(*s, {"evidence", std::to_string(detection), *s / "unstamped", "--home", home, "--no-pdf",
+                    "--tsa-url", "http://127.0.0.1:1/"});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("did not answer"), std::string::npos) << r.err;
+  EXPECT_FALSE(exists(*s / "unstamped"));
 }
 
 TEST_F(Evidence, RefusalsNameTheReason) {
