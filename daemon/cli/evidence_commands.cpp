@@ -45,7 +45,16 @@ void run_evidence(const EvidenceArgs& a) {
     std::printf("%s\n", k.public_key().text().c_str());
     return;
   }
-  if (a.args.size() != 2) throw CLI::ValidationError("evidence", "expected DETECTION OUT_DIR, or pubkey");
+  if (a.args.size() == 1 && a.args[0] == "rotate-key") {
+    auto st = store::open_home(home, false);
+    const keys::SigningKey k = keys::rotate_signing_key(service::signing_key_path(home), service::signing_public_dir(home));
+    st->append_audit({"cli", "evidence.key.rotate", "signing-key:" + k.public_key().id(), "{}"});
+    std::printf("new signing key %s; earlier keys stay trusted by verify --home (%s)\n%s\n",
+                k.public_key().id().c_str(), service::signing_public_dir(home).c_str(), k.public_key().text().c_str());
+    return;
+  }
+  if (a.args.size() != 2)
+    throw CLI::ValidationError("evidence", "expected DETECTION OUT_DIR, pubkey or rotate-key");
   std::int64_t id = 0;
   try {
     std::size_t used = 0;
@@ -124,9 +133,9 @@ void run_reproduce(const std::string& home_option, std::int64_t id) {
 
 void add_evidence_commands(CLI::App& app) {
   auto e = std::make_shared<EvidenceArgs>();
-  auto* ev = app.add_subcommand("evidence", "Write a detection's signed evidence package, or print the signing "
-                                            "public key (evidence pubkey)");
-  ev->add_option("args", e->args, "DETECTION OUT_DIR, or pubkey")->required()->expected(1, 2);
+  auto* ev = app.add_subcommand("evidence", "Write a detection's signed evidence package; evidence pubkey prints "
+                                            "the signing public key, evidence rotate-key replaces the key");
+  ev->add_option("args", e->args, "DETECTION OUT_DIR, pubkey or rotate-key")->required()->expected(1, 2);
   ev->add_option("--home", e->home, "meshmark home folder (default: $MESHMARK_HOME or ./meshmark-home)");
   ev->add_option("--case-id", e->case_id, "case id printed on the report (default MM-<detection>-<suspect hash>)");
   ev->add_flag("--no-pdf", e->no_pdf, "do not print the report to PDF");

@@ -112,6 +112,23 @@ SigningKey load_or_create_signing_key(const std::string& file_path, const std::s
   return k;
 }
 
+SigningKey rotate_signing_key(const std::string& file_path, const std::string& public_dir) {
+  const char* v = std::getenv(kSigningKeyEnv);
+  if (v && *v)
+    throw KeyError(std::string("the signing key comes from ") + kSigningKeyEnv + "; rotate it there");
+  record_public_key(load_or_create_signing_key(file_path, public_dir).public_key(), public_dir);
+  const std::string next = file_path + ".next";
+  std::filesystem::remove(next);
+  create_secret_key_file(next, "signing key file");
+  if (::rename(next.c_str(), file_path.c_str()) != 0) {
+    std::filesystem::remove(next);
+    throw KeyError("signing key file " + file_path + ": cannot replace it");
+  }
+  SigningKey k = load_signing_key(file_path);
+  record_public_key(k.public_key(), public_dir);
+  return k;
+}
+
 void record_public_key(const PublicKey& key, const std::string& public_dir) {
   std::error_code ec;
   std::filesystem::create_directories(public_dir, ec);

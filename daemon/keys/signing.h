@@ -48,6 +48,10 @@ SigningKey load_signing_key(const std::string& file_path);
 // Loads the key, creating the file (0600) first when neither it nor the environment variable
 // exists, and records its public key under public_dir.
 SigningKey load_or_create_signing_key(const std::string& file_path, const std::string& public_dir);
+// Replaces the key file with a new random seed (written beside it, renamed over it) after
+// recording the old public key, and records the new one; returns the new key. KeyError when the
+// key comes from the environment (rotate it there) or the file cannot be replaced.
+SigningKey rotate_signing_key(const std::string& file_path, const std::string& public_dir);
 // Every public key recorded under public_dir (files <id>.pub), sorted by id.
 std::vector<PublicKey> recorded_public_keys(const std::string& public_dir);
 void record_public_key(const PublicKey& key, const std::string& public_dir);

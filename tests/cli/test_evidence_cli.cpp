@@ -290,6 +290,25 @@ TEST_F(Evidence, TrustedTimestampFromAnRfc3161AuthorityVerifiesAndTamperingFails
   EXPECT_FALSE(exists(*s / "unstamped"));
 }
 
+TEST_F(Evidence, PackagesSignedBeforeAKeyRotationStillVerify) {
+  const auto before = meshmark(*s, {"evidence", "pubkey", "--home", home}).out;
+  auto r = meshmark(*s, {"evidence", "rotate-key", "--home", home});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto after = meshmark(*s, {"evidence", "pubkey", "--home", home}).out;
+  EXPECT_NE(before, after);
+  const std::string dir = *s / "after-rotation";
+  ASSERT_EQ(meshmark(*s, {"evidence", std::to_string(detection), dir, "--home", home, "--no-pdf"}).code, 0);
+  // The home trusts both keys; each exported key verifies only its own packages.
+  EXPECT_EQ(meshmark(*s, {"verify", package, "--home", home}).code, 0);
+  EXPECT_EQ(meshmark(*s, {"verify", dir, "--home", home}).code, 0);
+  EXPECT_EQ(meshmark(*s, {"verify", package, "--pubkey", *s / "pub.txt"}).code, 0);
+  EXPECT_EQ(meshmark(*s, {"verify", dir, "--pubkey", *s / "pub.txt"}).code, 1);
+  ASSERT_EQ(std::system(("sqlite3 " + quote(home + "/meshmark.db") +
+                         " \"SELECT count(*) FROM audit_log WHERE action = 'evidence.key.rotate'\" >" +
+                         quote(*s / "rotations.txt")).c_str()), 0);
+  EXPECT_EQ(slurp(*s / "rotations.txt"), "1\n") << "the rotation is in the audit log";
+}
+
 TEST_F(Evidence, RefusalsNameTheReason) {
   auto r = meshmark(*s, {"evidence", "999", *s / "p999", "--home", home});
   EXPECT_EQ(r.code, 1);
