@@ -171,6 +171,15 @@ void create_secret_key_file(const std::string& path, const std::string& label) {
   if (!written) throw KeyError(label + " " + path + ": cannot write: " + why);
 }
 
+std::array<std::uint8_t, 32> master_key_check(const SecretKey& master) {
+  ensure_sodium();
+  static const char label[] = "meshmark master key check v1";
+  std::array<std::uint8_t, 32> out{};
+  crypto_generichash(out.data(), out.size(), reinterpret_cast<const unsigned char*>(label), sizeof label - 1,
+                     master.data(), kKeyBytes);
+  return out;
+}
+
 SealedKey seal_customer_key(const SecretKey& master, const SecretKey& key, std::int64_t customer_id,
                             int version) {
   ensure_sodium();

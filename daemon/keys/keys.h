@@ -66,6 +66,10 @@ SecretKey load_master_key(const std::string& file_path);
 // KeyError if it exists). Written to a temporary name, fsynced, renamed.
 void create_master_key_file(const std::string& path);
 
+// A check value of the master key (BLAKE2b-256 keyed with it over a fixed label): stored with the
+// database so a wrong master key is refused at once. It reveals nothing about the key.
+std::array<std::uint8_t, 32> master_key_check(const SecretKey& master);
+
 struct SealedKey {
   std::vector<std::uint8_t> nonce;       // 24 bytes
   std::vector<std::uint8_t> ciphertext;  // 32 bytes + 16-byte tag

@@ -10,6 +10,8 @@
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <string_view>
+#include <spdlog/pattern_formatter.h>
 #include <spdlog/sinks/basic_file_sink.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -56,6 +58,30 @@ int remove_stale_output_temps(const std::string& output_dir) {
   return n;
 }
 
+// The message with every control character escaped (\n, \r, \t, \xNN): a file name carrying a
+// newline cannot forge a log line, whatever code logged it.
+class EscapedMessage final : public spdlog::custom_flag_formatter {
+ public:
+  void format(const spdlog::details::log_msg& msg, const std::tm&, spdlog::memory_buf_t& dest) override {
+    static const char* hex = "0123456789abcdef";
+    for (char c : std::string_view(msg.payload.data(), msg.payload.size())) {
+      const auto u = static_cast<unsigned char>(c);
+      if (u >= 0x20 && u != 0x7f) {
+        dest.push_back(c);
+        continue;
+      }
+      const char* named = u == '\n' ? "\\n" : u == '\r' ? "\\r" : u == '\t' ? "\\t" : nullptr;
+      if (named) {
+        dest.append(named, named + 2);
+      } else {
+        const char esc[4] = {'\\', 'x', hex[u >> 4], hex[u & 15]};
+        dest.append(esc, esc + 4);
+      }
+    }
+  }
+  std::unique_ptr<custom_flag_formatter> clone() const override { return std::make_unique<EscapedMessage>(); }
+};
+
 }  // namespace
 
 void setup_logging(const Config& cfg) {
@@ -64,7 +90,9 @@ void setup_logging(const Config& cfg) {
     logger = spdlog::stderr_color_mt("meshmarkd-" + std::to_string(now_ms()));
   else
     logger = spdlog::basic_logger_mt("meshmarkd-" + std::to_string(now_ms()), cfg.log_file);
-  logger->set_pattern("%Y-%m-%d %H:%M:%S.%e [%l] %v");
+  auto formatter = std::make_unique<spdlog::pattern_formatter>();
+  formatter->add_flag<EscapedMessage>('*').set_pattern("%Y-%m-%d %H:%M:%S.%e [%l] %*");
+  logger->set_formatter(std::move(formatter));
   logger->set_level(spdlog::level::from_str(cfg.log_level));
   logger->flush_on(spdlog::level::info);
   spdlog::set_default_logger(logger);

@@ -126,13 +126,15 @@ void WorkerPool::worker_main(int index) {
   } catch (const std::exception& e) {
     spdlog::error("{}: cannot open the store: {}", worker_id, e.what());
   }
-  std::vector<std::string> kinds;
-  for (const auto& [k, h] : handlers_) kinds.push_back(k);
+  // Every kind is claimed: a job of a kind no handler runs (a row another system inserted) is
+  // discarded at once with that reason, as the queue contract says, instead of waiting forever.
+  std::string known;
+  for (const auto& [k, h] : handlers_) known += (known.empty() ? "" : ", ") + k;
   while (st && !stop_) {
     auto cfg = config_();
     std::optional<store::Job> job;
     try {
-      job = st->claim(worker_id, store::Millis(cfg->lease_seconds) * 1000, kinds);
+      job = st->claim(worker_id, store::Millis(cfg->lease_seconds) * 1000);
     } catch (const std::exception& e) {
       spdlog::warn("{}: claim failed: {}", worker_id, e.what());
     }
@@ -154,7 +156,10 @@ void WorkerPool::worker_main(int index) {
     store::JobRecords records;
     try {
       HandlerContext ctx{*cfg, worker_id};
-      records = handlers_.at(job->kind)(*st, *job, ctx);
+      const auto handler = handlers_.find(job->kind);
+      if (handler == handlers_.end())
+        throw PermanentError("unknown job kind '" + job->kind.substr(0, 64) + "' (this meshmarkd runs " + known + ")");
+      records = handler->second(*st, *job, ctx);
     } catch (const PermanentError& e) {
       error = e.what();
       permanent = true;

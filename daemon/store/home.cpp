@@ -39,6 +39,8 @@ bool init_home(const HomePaths& home) {
   StoreOptions o;
   o.db_path = home.db;
   o.blob_dir = home.blobs;
+  // With the master key: the store records its check value, so a different key is refused later.
+  o.master_key = keys::load_master_key(home.master_key);
   open_sqlite_store(o);  // creates the database and applies migrations
   return created || !had_db;
 }

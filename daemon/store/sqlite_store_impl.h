@@ -156,6 +156,7 @@ class SqliteStore final : public Store {
              "setting synchronous");
     db_.exec("PRAGMA foreign_keys=ON", "enabling foreign keys");
     migrate();
+    if (opt_.master_key) check_master_key(*opt_.master_key);
   }
 
   int schema_version() override {
@@ -284,7 +285,57 @@ class SqliteStore final : public Store {
     return static_cast<int>(q.i64(0));
   }
 
+  // Refuses a master key other than the one this store's keys are sealed under, before anything
+  // is sealed with it. A store without a check value yet (new, or older than migration 3) gets
+  // one, after a customer key, if any, proves the key right.
+  void check_master_key(const keys::SecretKey& master) {
+    const auto want = keys::master_key_check(master);
+    const std::string refusal =
+        "wrong master key: it is not the key this store's customer keys are sealed under (" + opt_.db_path +
+        "); check MESHMARK_MASTER_KEY or the home's master.key";
+    {
+      Stmt q(db_, "SELECT check_value FROM master_key_check WHERE id = 1");
+      if (q.step()) {
+        const auto have = q.blob(0);
+        if (have.size() != want.size() || sodium_memcmp(have.data(), want.data(), want.size()) != 0)
+          throw keys::KeyError(refusal);
+        return;
+      }
+    }
+    Tx tx(db_);
+    Stmt q(db_, "SELECT customer_id, version, nonce, ciphertext FROM customer_keys ORDER BY customer_id, version LIMIT 1");
+    if (q.step()) {
+      try {
+        keys::open_customer_key(master, {q.blob(2), q.blob(3)}, q.i64(0), static_cast<int>(q.i64(1)));
+      } catch (const keys::KeyError&) {
+        throw keys::KeyError(refusal);
+      }
+    }
+    Stmt ins(db_, "INSERT OR IGNORE INTO master_key_check(id, check_value, created_at) VALUES(1, ?, ?)");
+    ins.bind(1, std::vector<std::uint8_t>(want.begin(), want.end())).bind(2, now()).run();
+    tx.commit();
+  }
+
+  // Every migration already applied? A plain read (no write lock), so opening a current store
+  // for a read-only command never waits for, or fails on, another process's write transaction.
+  bool schema_current() {
+    const auto& ms = embedded_migrations();
+    Stmt t(db_, "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'schema_version'");
+    if (!t.step()) return false;
+    Stmt q(db_, "SELECT COUNT(*), COALESCE(MAX(version), 0) FROM schema_version");
+    q.step();
+    return static_cast<std::size_t>(q.i64(0)) >= ms.size() && (ms.empty() || q.i64(1) >= ms.back().version);
+  }
+
   void migrate() {
+    if (schema_current()) {
+      const auto& ms = embedded_migrations();
+      const int v = current_version(), latest = ms.empty() ? 0 : ms.back().version;
+      if (v > latest)
+        throw StoreError("database " + opt_.db_path + " has schema version " + std::to_string(v) +
+                         ", newer than this meshmark knows (" + std::to_string(latest) + "); upgrade meshmark");
+      return;
+    }
     {
       Tx tx(db_);
       db_.exec("CREATE TABLE IF NOT EXISTS schema_version (version INTEGER PRIMARY KEY, "

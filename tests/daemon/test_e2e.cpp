@@ -609,3 +609,33 @@ TEST_F(E2E, BatchRunUntilEmptyWithoutDaemon) {
 }
 
 }  // namespace
+
+namespace {
+
+// A job of a kind no handler runs is discarded at once with the reason (the queue contract), and a
+// file name carrying a newline cannot forge a log line.
+TEST_F(E2E, UnknownKindIsDiscardedAndNamesCannotForgeLogLines) {
+  mm::store::JobSpec spec;
+  spec.kind = "frobnicate";
+  const auto unknown = store()->enqueue(spec).job;
+  const std::string forged = "2026-01-01 00:00:00.000 [info] forged line";
+  fs::create_directories(drop / "detect");
+  const fs::path evil = drop / "detect" / ("x.stl\n" + forged + ".stl");
+  std::ofstream(evil) << "solid x\nendsolid x\n";
+  fs::last_write_time(evil, fs::file_time_type::clock::now() - 10s);
+  const std::string cmd = std::string(MESHMARK_EXE) + " run --until-empty --config " +
+                          (dir / "meshmarkd.json").string() + " >/dev/null 2>" + (dir / "meshmarkd.stderr").string();
+  std::system(cmd.c_str());
+  const auto j = store()->get_job(unknown.id);
+  ASSERT_TRUE(j);
+  EXPECT_EQ(j->state, mm::store::JobState::discarded);
+  ASSERT_EQ(j->errors.size(), 1u);
+  EXPECT_NE(j->errors[0].error.find("unknown job kind 'frobnicate'"), std::string::npos) << j->errors[0].error;
+  const std::string text = log();
+  EXPECT_NE(text.find("forged line"), std::string::npos) << "the name is logged\n" << text;
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);)
+    EXPECT_NE(line.rfind(forged, 0), 0u) << "a forged log line:\n" << text;
+}
+
+}  // namespace

@@ -9,6 +9,7 @@
 
 #include "keys/keys.h"
 #include "store/home.h"
+#include "store/sqlite_db.h"
 #include "store_test_util.h"
 
 using namespace mm;
@@ -157,16 +158,53 @@ TEST(Keys, StoreCustomerKeysRotateAndOldVersionsStay) {
   for (const char* bad : {"", "../x", "a/b", "..", "has space", "x\n"})
     EXPECT_THROW(s->add_customer(bad), store::StoreError) << bad;
 
-  // Wrong master key: a clear KeyError; no master key at all: a clear KeyError.
+  // Wrong master key: refused when the store is opened; no master key at all: a clear KeyError.
   auto wrong = o;
   wrong.master_key = SecretKey::random();
-  auto sw = store::open_sqlite_store(wrong);
-  EXPECT_THROW(sw->customer_key(acme.id), keys::KeyError);
+  EXPECT_THROW(store::open_sqlite_store(wrong), keys::KeyError);
   auto none = o;
   none.master_key.reset();
   auto sn = store::open_sqlite_store(none);
   EXPECT_THROW(sn->customer_key(acme.id), keys::KeyError);
   EXPECT_EQ(sn->list_customers().size(), 2u) << "listing needs no key";
+}
+
+// A wrong master key is refused at open, before `customer add` or `rotate-key` can seal anything
+// under it or the daemon starts: by the stored check value, or, for a store that has none yet, by
+// the first sealed customer key.
+TEST(Keys, WrongMasterKeyIsRefusedWhenTheStoreOpens) {
+  TempDir dir;
+  auto o = options(dir);
+  {
+    auto s = store::open_sqlite_store(o);  // a new store records the key's check value
+  }
+  auto wrong = o;
+  wrong.master_key = SecretKey::random();
+  try {
+    store::open_sqlite_store(wrong);
+    FAIL() << "a new store accepted another master key";
+  } catch (const keys::KeyError& e) {
+    EXPECT_NE(std::string(e.what()).find("wrong master key"), std::string::npos) << e.what();
+  }
+  std::int64_t acme = 0;
+  {
+    auto s = store::open_sqlite_store(o);
+    acme = s->add_customer("acme").id;
+  }
+  // A store from before the check value: the sealed key decides, and the check is recorded.
+  {
+    store::sql::Db db(o.db_path, 1000);
+    db.exec("DELETE FROM master_key_check", "delete");
+  }
+  EXPECT_THROW(store::open_sqlite_store(wrong), keys::KeyError);
+  {
+    auto s = store::open_sqlite_store(o);
+    EXPECT_EQ(s->customer_key(acme).version, 1);
+  }
+  EXPECT_THROW(store::open_sqlite_store(wrong), keys::KeyError);
+  auto none = o;
+  none.master_key.reset();
+  EXPECT_NO_THROW(store::open_sqlite_store(none)) << "read-only use needs no key";
 }
 
 TEST(Keys, NoKeyMaterialAnywhereInTheDatabaseOrMessages) {
@@ -219,9 +257,7 @@ TEST(Keys, NoKeyMaterialAnywhereInTheDatabaseOrMessages) {
     store::StoreOptions wrong;
     wrong.db_path = home.db;
     wrong.master_key = SecretKey::random();
-    auto sw = store::open_sqlite_store(wrong);
-    bad([&] { sw->customer_key(acme.id, 1); });
-    bad([&] { sw->rotate_key(acme.id); });  // works (seals a new key) -> no message, fine
+    bad([&] { store::open_sqlite_store(wrong); });  // refused: the key's check value differs
     EXPECT_GE(messages.size(), 2u);
   }
   // Everything on disk under home except the master key file itself, plus a full SQL dump.
@@ -229,7 +265,7 @@ TEST(Keys, NoKeyMaterialAnywhereInTheDatabaseOrMessages) {
   for (auto& e : std::filesystem::recursive_directory_iterator(home.root))
     if (e.is_regular_file() && e.path() != home.master_key) everything += read_all(e.path().string());
   for (const char* table : {"customers", "customer_keys", "assets", "jobs", "issued_copies",
-                            "detections", "audit_log", "schema_version", "polyhedra"})
+                            "detections", "audit_log", "schema_version", "polyhedra", "master_key_check"})
   {
     std::string cols;
     for (auto& c : raw_query(home.db, std::string("SELECT name FROM pragma_table_info('") + table + "')"))

@@ -4,6 +4,7 @@
 #include <mutex>
 #include <thread>
 
+#include "store/sqlite_db.h"
 #include "store_test_util.h"
 
 using namespace mm;
@@ -370,4 +371,32 @@ TEST(Queue, NextScheduledTellsASleepingWorkerWhenToWake) {
   EXPECT_EQ(s->next_scheduled(), std::nullopt) << "running jobs are not waiting";
   s->fail(id, "w", "later");
   EXPECT_EQ(s->next_scheduled(), clock.now() + 4000);
+}
+
+// Reads (opening a current store, listing jobs, copies, detections) never take the write lock:
+// they work while another program holds a write transaction.
+TEST(Queue, ReadsWorkWhileAnotherConnectionHoldsTheWriteLock) {
+  TempDir dir;
+  store::StoreOptions o;
+  o.db_path = dir / "q.db";
+  {
+    auto st = store::open_sqlite_store(o);
+    st->enqueue(spec());
+  }
+  store::sql::Db writer(o.db_path, 100);
+  writer.exec("BEGIN IMMEDIATE", "begin");
+  writer.exec("INSERT INTO jobs(kind) VALUES('noop')", "insert");
+  o.busy_timeout_ms = 200;
+  std::unique_ptr<store::Store> reader;
+  ASSERT_NO_THROW(reader = store::open_sqlite_store(o));
+  EXPECT_NO_THROW({
+    EXPECT_EQ(reader->list_jobs({}).size(), 1u);
+    reader->list_copies();
+    reader->list_detections();
+    reader->list_customers();
+    reader->list_audit();
+    reader->counts();
+  });
+  writer.exec("COMMIT", "commit");
+  EXPECT_EQ(reader->list_jobs({}).size(), 2u);
 }
