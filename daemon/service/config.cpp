@@ -132,12 +132,28 @@ Config parse_config(const std::string& text, const std::string& source, const st
   cfg.source = source;
   c.known(j, "", {"home", "drop_dir", "output_dir", "master_key_file", "workers", "lease_seconds",
                   "heartbeat_seconds", "max_attempts", "shutdown_grace_seconds", "poll_interval_ms",
-                  "settle_ms", "use_inotify", "output_format", "watermark", "compression", "detect", "evidence", "log_level",
+                  "settle_ms", "use_inotify", "input_roots", "output_format", "watermark", "compression", "detect", "evidence", "log_level",
                   "log_file", "$comment"});
   c.path(j, "home", cfg.home, true);
   c.path(j, "drop_dir", cfg.drop_dir, true);
   c.path(j, "output_dir", cfg.output_dir, true);
   c.path(j, "master_key_file", cfg.master_key_file, false);
+  if (j.contains("input_roots")) {
+    const json& r = j["input_roots"];
+    if (!r.is_array()) {
+      c.error("input_roots", "must be an array of folders");
+    } else {
+      for (const json& x : r) {
+        if (!x.is_string() || x.get<std::string>().empty()) {
+          c.error("input_roots", "must hold non-empty folder paths only");
+          break;
+        }
+        fs::path p(x.get<std::string>());
+        if (p.is_relative() && !base_dir.empty()) p = fs::path(base_dir) / p;
+        cfg.input_roots.push_back(p.lexically_normal().string());
+      }
+    }
+  }
   c.integer(j, "", "workers", cfg.workers, 1, 64);
   c.integer(j, "", "lease_seconds", cfg.lease_seconds, 5, 86400);
   c.integer(j, "", "heartbeat_seconds", cfg.heartbeat_seconds, 1, 3600);
@@ -230,6 +246,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
     c.folder_exists("drop_dir", cfg.drop_dir);
     c.folder_exists("output_dir", cfg.output_dir);
     if (!cfg.log_file.empty()) c.folder_exists("log_file", fs::path(cfg.log_file).parent_path().string());
+    for (const auto& r : cfg.input_roots) c.folder_exists("input_roots", r);
   }
   if (!cfg.drop_dir.empty() && cfg.drop_dir == cfg.output_dir)
     c.error("output_dir", "must differ from drop_dir (outputs would be picked up as new drops)");

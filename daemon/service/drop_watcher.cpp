@@ -176,9 +176,14 @@ void DropWatcher::read_events(std::int64_t now_ms) {
       }
       if (ev->mask & IN_CREATE) writing_.insert(rel);
       if (ev->mask & IN_MODIFY) seen_.erase(rel);
-      if (ev->mask & (IN_CLOSE_WRITE | IN_MOVED_TO)) {
+      // Renamed into place: complete. Closed after writing: perhaps only one of several appends,
+      // so it is taken once unchanged for settle_ms (a copy must not be issued from half a part).
+      if (ev->mask & IN_MOVED_TO) {
         writing_.erase(rel);
         consider(rel, now_ms, true);
+      } else if (ev->mask & IN_CLOSE_WRITE) {
+        writing_.erase(rel);
+        consider(rel, now_ms, false);
       }
     }
   }

@@ -2,9 +2,10 @@
 // customer, one placed in <drop>/detect/ a detect job. When its job is final the file moves to
 // <drop>/done/... or <drop>/failed/... (same relative path) with <name>.json beside it saying why.
 //
-// Only complete files are picked up: with inotify, a file that was created while watched is ready
-// at IN_CLOSE_WRITE, a file renamed in at IN_MOVED_TO; files found by scanning (present at start,
-// missed events, no inotify) are ready once their size and mtime have not changed for settle_ms.
+// Only complete files are picked up: a file renamed in (IN_MOVED_TO) is ready at once, the safe way
+// to drop; a file written in place is ready once closed and its size and mtime have not changed
+// for settle_ms (a client may open, append and close it several times); so are files found by
+// scanning (present at start, missed events, no inotify).
 // Ignored: symlinks and anything not a regular file, dotfiles and temporary names (*.tmp, *.part,
 // *~, *.swp, *.crdownload, #*#), customer folders that are symlinks or not valid customer names,
 // and anything whose path would leave the drop folder.

@@ -27,6 +27,7 @@
 #include "service/evidence_package.h"
 #include "support/atomic_file.h"
 #include "support/hex.h"
+#include "support/printable.h"
 #include "support/sha256.h"
 
 namespace mm::service {
@@ -71,12 +72,33 @@ std::string str_field(const json& j, const char* key, const store::Job& job, boo
   return j[key].get<std::string>();
 }
 
+// input_path resolved (symbolic links and `..` included) and checked to lie under one of the
+// configured input roots, before anything opens it.
+std::string allowed_input_path(const std::string& path, const Config& cfg, const store::Job& job) {
+  const std::string what = "job " + std::to_string(job.id) + ": input_path " + support::printable(path, 200);
+  if (cfg.input_roots.empty())
+    throw PermanentError(what + " refused: no input_roots are configured (config/config-keys.md)");
+  if (!fs::path(path).is_absolute()) throw PermanentError(what + " refused: it must be an absolute path");
+  std::error_code ec;
+  const fs::path real = fs::canonical(path, ec);
+  if (ec) throw PermanentError(what + ": " + ec.message());
+  for (const auto& root : cfg.input_roots) {
+    const fs::path r = fs::canonical(root, ec);
+    if (ec) continue;
+    const auto rel = real.lexically_relative(r);
+    if (!rel.empty() && *rel.begin() != ".." && rel.is_relative() && rel != ".") return real.string();
+  }
+  throw PermanentError(what + " refused: it is not under any of input_roots");
+}
+
 // The input's bytes: from the blob store, or (PDM rows) from a path, which is stored first.
-std::vector<std::uint8_t> input_bytes(store::Store& st, const json& p, const store::Job& job, std::string* sha) {
+std::vector<std::uint8_t> input_bytes(store::Store& st, const json& p, const store::Job& job, std::string* sha,
+                                      const Config& cfg) {
   std::string h = str_field(p, "input_sha256", job, false);
   if (h.empty()) {
     std::string path = str_field(p, "input_path", job, false);
     if (path.empty()) throw PermanentError("job " + std::to_string(job.id) + ": payload needs input_sha256 or input_path");
+    path = allowed_input_path(path, cfg, job);
     try {
       h = st.blobs().put_file(path);
     } catch (const store::BlobError& e) {
@@ -206,7 +228,7 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   if (!customer) throw PermanentError("unknown customer \"" + customer_name + "\" (add it with: meshmark customer add)");
 
   std::string sha;
-  auto bytes = input_bytes(st, p, job, &sha);
+  auto bytes = input_bytes(st, p, job, &sha, ctx.config);
   Mesh mesh = parse_input(bytes, name);
   std::string in_format = format_of(name);
   if (out_format.empty()) out_format = cfg.output_format == "same" ? in_format : cfg.output_format;
@@ -246,11 +268,31 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   }
   // Each file: temporary name, fsync, rename. A crash between the two leaves complete files
   // only; the re-run rewrites the same bytes (everything above is deterministic).
+  ctx.check_cancelled();  // the expensive part is done; nothing is written for a cancelled job
   const std::string base = output_base_for(cfg, customer->name, name, idem);
   const std::string stream_path = base + ".mmc", out = base + "." + out_format;
-  fs::create_directories(fs::path(base).parent_path());
-  write_bytes_atomic(stream_path, files.stream);
-  write_mesh(files.decoded, out);
+  std::string decoded_bytes;
+  try {
+    decoded_bytes = mesh_file_bytes(files.decoded, out);
+  } catch (const InputError& e) {
+    throw PermanentError(name + ": cannot write the decoded copy: " + e.what());
+  }
+  // A full disk or an I/O error is transient: this attempt's files are removed and the job is
+  // retried with backoff (never discarded for it, never leaving a stream without a copy record).
+  std::vector<std::string> written;
+  try {
+    fs::create_directories(fs::path(base).parent_path());
+    write_bytes_atomic(stream_path, files.stream);
+    written.push_back(stream_path);
+    write_bytes_atomic(out, std::vector<std::uint8_t>(decoded_bytes.begin(), decoded_bytes.end()));
+    written.push_back(out);
+  } catch (const std::exception& e) {
+    for (const auto& w : written) {
+      std::error_code ec;
+      fs::remove(w, ec);
+    }
+    throw std::runtime_error(name + ": writing the copy failed, will retry: " + e.what());
+  }
   const std::string stream_sha = support::sha256_file_hex(stream_path), out_sha = support::sha256_file_hex(out);
 
   store::NewCopy nc;
@@ -401,7 +443,7 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
   json p = parse_payload(job);
   jobs::Suspect suspect;
   suspect.name = fs::path(str_field(p, "name", job)).filename().string();
-  auto bytes = input_bytes(st, p, job, &suspect.sha256);
+  auto bytes = input_bytes(st, p, job, &suspect.sha256, cfg);
   suspect.mesh = parse_input(bytes, suspect.name, &suspect.stream_metadata);
   const DetectionRecord dr = detect_record(st, suspect, {cfg.p_threshold, cfg.max_candidates}, contexts);
   const store::NewDetection& d = dr.detection;

@@ -29,9 +29,17 @@ struct PermanentError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Thrown by HandlerContext::check_cancelled when the job was cancelled while it ran: the worker
+// stops it there, writes nothing more and removes what it wrote.
+struct JobCancelled : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 struct HandlerContext {
   const Config& config;
   std::string worker_id;
+  // Handlers call this between steps (before writing outputs); throws JobCancelled. No-op default.
+  std::function<void()> check_cancelled = [] {};
 };
 
 using Handler = std::function<store::JobRecords(store::Store&, const store::Job&, const HandlerContext&)>;

@@ -1,5 +1,8 @@
 #include "service/worker_pool.h"
 
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
 #include "service/memory.h"
 
 #include <spdlog/spdlog.h>
@@ -118,6 +121,24 @@ void WorkerPool::heartbeat_main() {
   }
 }
 
+namespace {
+
+// The output files a job's records name (issued copies' outputs), removed; how many were.
+int remove_outputs(const store::JobRecords& records) {
+  int n = 0;
+  for (const auto& c : records.copies) {
+    const auto outputs = nlohmann::json::parse(c.outputs_json, nullptr, false);
+    if (!outputs.is_object()) continue;
+    for (const auto& f : outputs.value("files", nlohmann::json::array())) {
+      std::error_code ec;
+      if (f.contains("path") && f["path"].is_string() && std::filesystem::remove(f["path"].get<std::string>(), ec)) ++n;
+    }
+  }
+  return n;
+}
+
+}  // namespace
+
 void WorkerPool::worker_main(int index) {
   const std::string worker_id = id_prefix_ + ":w" + std::to_string(index);
   std::unique_ptr<store::Store> st;
@@ -154,12 +175,21 @@ void WorkerPool::worker_main(int index) {
     std::string error;
     bool permanent = false;
     store::JobRecords records;
+    bool cancelled = false;
     try {
       HandlerContext ctx{*cfg, worker_id};
+      ctx.check_cancelled = [&st, id = job->id] {
+        const auto now = st->get_job(id);
+        if (now && now->state == store::JobState::cancelled)
+          throw JobCancelled("job " + std::to_string(id) + " was cancelled while running");
+      };
       const auto handler = handlers_.find(job->kind);
       if (handler == handlers_.end())
         throw PermanentError("unknown job kind '" + job->kind.substr(0, 64) + "' (this meshmarkd runs " + known + ")");
       records = handler->second(*st, *job, ctx);
+    } catch (const JobCancelled& e) {
+      cancelled = true;
+      error = e.what();
     } catch (const PermanentError& e) {
       error = e.what();
       permanent = true;
@@ -175,7 +205,10 @@ void WorkerPool::worker_main(int index) {
     return_freed_memory();
     std::string outcome;
     try {
-      if (error.empty()) {
+      if (cancelled) {
+        outcome = "cancelled";
+        spdlog::info("job {} {} stopped after {:.2f} s: {}", job->id, job->kind, secs, error);
+      } else if (error.empty()) {
         st->complete(job->id, worker_id, records);
         outcome = "completed";
         spdlog::info("job {} {} completed in {:.2f} s (attempt {})", job->id, job->kind, secs, job->attempt);
@@ -187,8 +220,17 @@ void WorkerPool::worker_main(int index) {
                      job->max_attempts, error);
       }
     } catch (const store::LeaseLost& e) {
-      outcome = "lease_lost";
-      spdlog::warn("job {}: result dropped, lease lost: {}", job->id, e.what());
+      const auto now = st->get_job(job->id);
+      if (now && now->state == store::JobState::cancelled) {
+        // Cancelled between its last step and completion: nothing was issued, so the files it
+        // wrote go too.
+        outcome = "cancelled";
+        const int removed = remove_outputs(records);
+        spdlog::info("job {} {} cancelled before it completed; {} output file(s) removed", job->id, job->kind, removed);
+      } else {
+        outcome = "lease_lost";
+        spdlog::warn("job {}: result dropped, lease lost: {}", job->id, e.what());
+      }
     } catch (const std::exception& e) {
       outcome = "failed";
       spdlog::error("job {}: cannot record outcome: {}", job->id, e.what());
@@ -198,6 +240,7 @@ void WorkerPool::worker_main(int index) {
     if (outcome == "completed") ++stats_.completed;
     else if (outcome == "discarded") ++stats_.discarded;
     else if (outcome == "lease_lost") ++stats_.lease_lost;
+    else if (outcome == "cancelled") ++stats_.cancelled;
     else ++stats_.failed;
   }
   std::lock_guard<std::mutex> l(m_);

@@ -28,7 +28,7 @@ namespace mm::service {
 using StoreFactory = std::function<std::unique_ptr<store::Store>()>;
 
 struct PoolStats {
-  std::int64_t completed = 0, failed = 0, discarded = 0, lease_lost = 0, released = 0;
+  std::int64_t completed = 0, failed = 0, discarded = 0, lease_lost = 0, released = 0, cancelled = 0;
 };
 
 class WorkerPool {

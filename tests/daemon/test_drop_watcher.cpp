@@ -85,26 +85,35 @@ TEST_F(DropTest, ClassifiesOnlySafeRegularFiles) {
   EXPECT_FALSE(classify_drop_path(root.string(), "detect/folder.stl"));
 }
 
-TEST_F(DropTest, InotifyReportsFilesWhenClosedNotWhileOpen) {
-  DropWatcher w(root.string(), true, 60000);  // settle long: only events can make files ready
+TEST_F(DropTest, InotifyTakesRenamedFilesAtOnceAndWrittenFilesOnceSettledAfterTheirLastClose) {
+  DropWatcher w(root.string(), true, 300);
   if (!w.inotify_active()) GTEST_SKIP() << "inotify unavailable here";
+  const std::int64_t t = now_ms();  // polls pretend time moves on from here
   std::ofstream open_file(root / "protect/acme/slow.stl");
   open_file << "solid x\n" << std::flush;
-  EXPECT_TRUE(w.poll(now_ms()).empty());
-  write(root / "detect/quick.off");
+  EXPECT_TRUE(w.poll(t).empty());
+  EXPECT_TRUE(w.poll(t + 2000).empty()) << "never while still open, however long";
+  // Appended in several open-write-close rounds: not taken at the first close.
+  { std::ofstream(root / "detect/parts.stl") << "solid a\n"; }
   write(root / "detect/.hidden.off");
-  EXPECT_EQ(names(w.poll(now_ms())), std::vector<std::string>{"detect/quick.off"});
+  EXPECT_TRUE(w.poll(t + 2000).empty());
+  { std::ofstream(root / "detect/parts.stl", std::ios::app) << "facet\n"; }
+  EXPECT_TRUE(w.poll(t + 2200).empty()) << "changed since: the settle time restarts";
+  { std::ofstream(root / "detect/parts.stl", std::ios::app) << "endsolid a\n"; }
+  EXPECT_TRUE(w.poll(t + 2400).empty());
+  EXPECT_EQ(names(w.poll(t + 3000)), std::vector<std::string>{"detect/parts.stl"});
   open_file.close();
-  EXPECT_EQ(names(w.poll(now_ms())), std::vector<std::string>{"protect/acme/slow.stl"});
+  EXPECT_TRUE(w.poll(t + 3000).empty());
+  EXPECT_EQ(names(w.poll(t + 4000)), std::vector<std::string>{"protect/acme/slow.stl"});
   // A new customer folder is watched as it appears; a file renamed in is ready at once.
   fs::create_directories(root / "protect/newco");
-  w.poll(now_ms());
+  w.poll(t + 4000);
   write(root / "protect/newco/part.off.part");
-  EXPECT_TRUE(w.poll(now_ms()).empty());  // temporary name
+  EXPECT_TRUE(w.poll(t + 4000).empty());  // temporary name
   fs::rename(root / "protect/newco/part.off.part", root / "protect/newco/part.off");
-  EXPECT_EQ(names(w.poll(now_ms())), std::vector<std::string>{"protect/newco/part.off"});
+  EXPECT_EQ(names(w.poll(t + 4000)), std::vector<std::string>{"protect/newco/part.off"});
   // Reported once until forgotten.
-  EXPECT_TRUE(w.poll(now_ms()).empty());
+  EXPECT_TRUE(w.poll(t + 9000).empty());
 }
 
 TEST_F(DropTest, PollingWaitsUntilFilesAreStable) {

@@ -639,3 +639,82 @@ TEST_F(E2E, UnknownKindIsDiscardedAndNamesCannotForgeLogLines) {
 }
 
 }  // namespace
+
+namespace {
+
+// input_path names files under the configured input roots only (links resolved first); anything
+// else is refused before it is opened, so a row cannot make the daemon read a private file.
+TEST_F(E2E, InputPathIsRestrictedToTheInputRoots) {
+  const fs::path exports = dir / "exports", secret = dir / "private.txt";
+  fs::create_directories(exports);
+  std::ofstream(secret) << "TOPSECRET-first-line\n";
+  {
+    std::ofstream part(exports / "part.off");
+    part << "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
+  }
+  fs::create_symlink(secret, exports / "link.off");
+  auto submit = [&](const std::string& path) {
+    mm::store::JobSpec spec;
+    spec.kind = "detect";
+    spec.payload_json = json{{"input_path", path}, {"name", fs::path(path).filename().string()}}.dump();
+    return store()->enqueue(spec).job.id;
+  };
+  // No roots configured: every input_path is refused.
+  const auto before = submit((exports / "part.off").string());
+  meshmark_with_config("run --until-empty --no-drops");  // exits 1: jobs were discarded
+  auto j = store()->get_job(before);
+  EXPECT_EQ(j->state, mm::store::JobState::discarded);
+  EXPECT_NE(j->errors.at(0).error.find("no input_roots are configured"), std::string::npos) << j->errors[0].error;
+
+  write_config({{"input_roots", json::array({exports.string()})}});
+  const auto inside = submit((exports / "part.off").string());
+  const auto outside = submit(secret.string());
+  const auto via_link = submit((exports / "link.off").string());
+  const auto dotdot = submit((exports / ".." / "private.txt").string());
+  const auto relative = submit("exports/part.off");
+  meshmark_with_config("run --until-empty --no-drops");  // exits 1: jobs were discarded
+  EXPECT_EQ(store()->get_job(inside)->state, mm::store::JobState::completed);
+  for (auto id : {outside, via_link, dotdot, relative}) {
+    j = store()->get_job(id);
+    ASSERT_EQ(j->state, mm::store::JobState::discarded) << id;
+    EXPECT_NE(j->errors.at(0).error.find("refused"), std::string::npos) << j->errors[0].error;
+  }
+  for (const auto& job : store()->list_jobs({}))
+    for (const auto& e : job.errors) EXPECT_EQ(e.error.find("TOPSECRET"), std::string::npos) << e.error;
+  EXPECT_EQ(log().find("TOPSECRET"), std::string::npos);
+}
+
+}  // namespace
+
+namespace {
+
+// A full disk while writing a copy is transient: the attempt's files are removed, the job is
+// retried with backoff and completes, with one copy record and no orphan file.
+TEST_F(E2E, FullDiskWhileWritingACopyIsRetriedAndLeavesNoOrphan) {
+  MM_REQUIRE_SHARED_MESHES();
+  // The daemon's 2nd atomic file write (the protect job's decoded copy, after its stream) fails
+  // with ENOSPC; the variable is set for the daemon only.
+  ::setenv("MESHMARK_FAIL_WRITE", "2", 1);
+  Daemon d = start();
+  ::unsetenv("MESHMARK_FAIL_WRITE");
+  ASSERT_EQ(meshmark_with_config("submit protect --customer alpha " + mm::test::shared_mesh("abc9.stl")), 0);
+  ASSERT_TRUE(wait_for([&] {
+    const auto jobs = store()->list_jobs({});
+    return !jobs.empty() && jobs[0].state == mm::store::JobState::completed;
+  }, 120s)) << log();
+  const auto job = store()->list_jobs({})[0];
+  EXPECT_EQ(job.attempt, 2);
+  ASSERT_EQ(job.errors.size(), 1u);
+  EXPECT_NE(job.errors[0].error.find("No space left on device"), std::string::npos) << job.errors[0].error;
+  const auto copies = store()->list_copies();
+  ASSERT_EQ(copies.size(), 1u);
+  expect_outputs_intact(copies[0]);
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(out / "alpha")) {
+    ++files;
+    EXPECT_EQ(e.path().filename().string()[0] != '.', true) << "temporary left: " << e.path();
+  }
+  EXPECT_EQ(files, 2) << "the stream and the decoded copy, nothing from the failed attempt";
+}
+
+}  // namespace

@@ -40,6 +40,9 @@ Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::st
 // leaves nothing half-written. Creases and corners are not stored by these formats.
 // Throws InputError(path, reason) for an invalid mesh or an I/O failure.
 void write_mesh(const Mesh& mesh, const std::string& path);
+// The bytes write_mesh writes to `path` (format from its extension), without writing them:
+// InputError for an unknown format or a mesh that cannot be written.
+std::string mesh_file_bytes(const Mesh& mesh, const std::string& path);
 
 // A double as the text writers print it: the shortest text that reads back to the same value
 // (std::to_chars). Cache keys and records name their parameters with it too.

@@ -143,18 +143,19 @@ void atomic_write(const std::string& path, const std::string& bytes) {
 
 }  // namespace
 
-void write_mesh(const Mesh& mesh, const std::string& path) {
+std::string mesh_file_bytes(const Mesh& mesh, const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
   if (ext != ".stl" && ext != ".obj" && ext != ".off" && ext != ".ply")
     throw InputError(path, "unknown mesh format \"" + ext + "\" (expected .stl, .obj, .off or .ply)");
   check_writable(mesh, path);
-  std::string bytes = ext == ".stl" ? stl_bytes(mesh, path)
-                      : ext == ".obj" ? obj_text(mesh)
-                      : ext == ".off" ? off_text(mesh)
-                                      : ply_text(mesh);
-  atomic_write(path, bytes);
+  return ext == ".stl" ? stl_bytes(mesh, path)
+         : ext == ".obj" ? obj_text(mesh)
+         : ext == ".off" ? off_text(mesh)
+                         : ply_text(mesh);
 }
+
+void write_mesh(const Mesh& mesh, const std::string& path) { atomic_write(path, mesh_file_bytes(mesh, path)); }
 
 std::string shortest_text(double d) {
   std::string s;
