@@ -39,6 +39,16 @@ class Checker {
       return error(prefix + key, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + std::to_string(x));
     out = static_cast<int>(x);
   }
+  void integer64(const json& obj, const std::string& prefix, const char* key, std::int64_t& out, long long lo,
+                 long long hi) {
+    int dummy = 0;
+    if (!obj.contains(key)) return;
+    if (!obj[key].is_number_integer()) return integer(obj, prefix, key, dummy, lo, hi);  // reports the type
+    const auto x = obj[key].get<long long>();
+    if (x < lo || x > hi)
+      return error(prefix + key, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + std::to_string(x));
+    out = x;
+  }
   void number(const json& obj, const std::string& prefix, const char* key, double& out, double lo, double hi,
               bool open_lo) {
     if (!obj.contains(key)) return;
@@ -132,7 +142,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
   cfg.source = source;
   c.known(j, "", {"home", "drop_dir", "output_dir", "master_key_file", "workers", "lease_seconds",
                   "heartbeat_seconds", "max_attempts", "shutdown_grace_seconds", "poll_interval_ms",
-                  "settle_ms", "use_inotify", "input_roots", "output_format", "watermark", "compression", "detect", "evidence", "log_level",
+                  "settle_ms", "use_inotify", "input_roots", "max_input_bytes", "max_triangles", "output_format", "watermark", "compression", "detect", "evidence", "log_level",
                   "log_file", "$comment"});
   c.path(j, "home", cfg.home, true);
   c.path(j, "drop_dir", cfg.drop_dir, true);
@@ -161,6 +171,8 @@ Config parse_config(const std::string& text, const std::string& source, const st
   c.integer(j, "", "shutdown_grace_seconds", cfg.shutdown_grace_seconds, 0, 3600);
   c.integer(j, "", "poll_interval_ms", cfg.poll_interval_ms, 20, 600000);
   c.integer(j, "", "settle_ms", cfg.settle_ms, 0, 600000);
+  c.integer64(j, "", "max_input_bytes", cfg.max_input_bytes, 0, 1ll << 40);
+  c.integer64(j, "", "max_triangles", cfg.max_triangles, 0, 1ll << 32);
   c.boolean(j, "", "use_inotify", cfg.use_inotify);
   c.string(j, "", "output_format", cfg.output_format, {"same", "stl", "obj", "off", "ply"});
   c.string(j, "", "log_level", cfg.log_level, {"trace", "debug", "info", "warn", "error", "critical", "off"});
@@ -310,6 +322,8 @@ std::map<std::string, std::string> flatten(const Config& c) {
           {"detect.p_threshold", num(c.p_threshold)},
           {"detect.max_candidates", std::to_string(c.max_candidates)},
           {"detect.context_cache_mb", std::to_string(c.context_cache_mb)},
+          {"max_input_bytes", std::to_string(c.max_input_bytes)},
+          {"max_triangles", std::to_string(c.max_triangles)},
           {"evidence.auto", c.evidence_auto ? "true" : "false"},
           {"evidence.pdf", c.evidence_pdf ? "true" : "false"},
           {"evidence.tsa_url", c.tsa_url},

@@ -35,6 +35,10 @@ struct Config {
   int settle_ms = 2000;  // polling fallback: a file unchanged this long counts as complete
   bool use_inotify = true;
   // Protect and detect.
+  // Inputs refused with their reason above these (0: no limit): a job's time and memory grow with
+  // the part (docs/daemon.md, Limits).
+  std::int64_t max_input_bytes = 256ll << 20;
+  std::int64_t max_triangles = 1000000;
   std::string output_format = "same";  // same | stl | obj | off | ply
   jobs::WatermarkSettings watermark;
   int max_vertices = 4000;          // watermark.max_vertices: cap on the control polyhedron

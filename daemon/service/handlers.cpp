@@ -99,6 +99,12 @@ std::vector<std::uint8_t> input_bytes(store::Store& st, const json& p, const sto
     std::string path = str_field(p, "input_path", job, false);
     if (path.empty()) throw PermanentError("job " + std::to_string(job.id) + ": payload needs input_sha256 or input_path");
     path = allowed_input_path(path, cfg, job);
+    std::error_code ec;
+    const auto size = fs::file_size(path, ec);
+    if (!ec && cfg.max_input_bytes > 0 && size > static_cast<std::uintmax_t>(cfg.max_input_bytes))
+      throw PermanentError("job " + std::to_string(job.id) + ": input_path " + support::printable(path, 200) + " is " +
+                           std::to_string(size) + " bytes, over max_input_bytes (" +
+                           std::to_string(cfg.max_input_bytes) + ")");
     try {
       h = st.blobs().put_file(path);
     } catch (const store::BlobError& e) {
@@ -107,6 +113,10 @@ std::vector<std::uint8_t> input_bytes(store::Store& st, const json& p, const sto
   }
   if (!store::is_sha256_hex(h)) throw PermanentError("job " + std::to_string(job.id) + ": input_sha256 is not a SHA-256 hex");
   if (!st.blobs().contains(h)) throw PermanentError("job " + std::to_string(job.id) + ": input blob " + h + " is not in the store");
+  const std::uint64_t size = st.blobs().size(h);
+  if (cfg.max_input_bytes > 0 && size > static_cast<std::uint64_t>(cfg.max_input_bytes))
+    throw PermanentError("job " + std::to_string(job.id) + ": the input is " + std::to_string(size) +
+                         " bytes, over max_input_bytes (" + std::to_string(cfg.max_input_bytes) + ")");
   *sha = h;
   return st.blobs().get(h);
 }
@@ -200,6 +210,14 @@ void write_bytes_atomic(const std::string& path, const std::vector<std::uint8_t>
 
 }  // namespace
 
+void check_triangles(const Mesh& mesh, const std::string& name, const Config& cfg) {
+  std::int64_t triangles = 0;
+  for (const auto& f : mesh.faces) triangles += f.size() >= 3 ? static_cast<std::int64_t>(f.size()) - 2 : 0;
+  if (cfg.max_triangles > 0 && triangles > cfg.max_triangles)
+    throw PermanentError(name + ": " + std::to_string(triangles) + " triangles, over max_triangles (" +
+                         std::to_string(cfg.max_triangles) + ")");
+}
+
 Mesh read_named_mesh(const std::vector<std::uint8_t>& bytes, const std::string& name,
                      std::map<std::string, std::string>* stream_metadata) {
   std::map<std::string, std::string> metadata;
@@ -230,6 +248,7 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   std::string sha;
   auto bytes = input_bytes(st, p, job, &sha, ctx.config);
   Mesh mesh = parse_input(bytes, name);
+  check_triangles(mesh, name, cfg);
   std::string in_format = format_of(name);
   if (out_format.empty()) out_format = cfg.output_format == "same" ? in_format : cfg.output_format;
   if (out_format != "stl" && out_format != "obj" && out_format != "off" && out_format != "ply")
@@ -445,6 +464,7 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
   suspect.name = fs::path(str_field(p, "name", job)).filename().string();
   auto bytes = input_bytes(st, p, job, &suspect.sha256, cfg);
   suspect.mesh = parse_input(bytes, suspect.name, &suspect.stream_metadata);
+  check_triangles(suspect.mesh, suspect.name, cfg);
   const DetectionRecord dr = detect_record(st, suspect, {cfg.p_threshold, cfg.max_candidates}, contexts);
   const store::NewDetection& d = dr.detection;
   const json details = json::parse(d.details_json);

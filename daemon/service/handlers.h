@@ -71,6 +71,10 @@ struct DetectionRecord {
 DetectionRecord detect_record(store::Store& st, const jobs::Suspect& suspect, const DetectParameters& params,
                               ContextCache* contexts = nullptr);
 
+// PermanentError naming the file when the mesh has more triangles (polygons fanned) than
+// cfg.max_triangles allows: the work and memory of a job grow with it.
+void check_triangles(const Mesh& mesh, const std::string& name, const Config& cfg);
+
 // A mesh file's bytes parsed by the format its name's extension gives (a .mmc stream decoded);
 // PermanentError naming the file and the reason when they cannot be. A stream's metadata goes
 // to stream_metadata when given.

@@ -1,5 +1,6 @@
 #include "service/worker_pool.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
@@ -215,9 +216,15 @@ void WorkerPool::worker_main(int index) {
       } else {
         auto state = st->fail(job->id, worker_id, error, !permanent);
         outcome = state == store::JobState::discarded ? "discarded" : "failed";
-        spdlog::warn("job {} {} {} after {:.2f} s (attempt {}/{}): {}", job->id, job->kind,
-                     state == store::JobState::discarded ? "discarded" : "will retry", secs, job->attempt,
-                     job->max_attempts, error);
+        if (state == store::JobState::discarded) {
+          spdlog::warn("job {} {} discarded after {:.2f} s (attempt {}/{}): {}", job->id, job->kind, secs,
+                       job->attempt, job->max_attempts, error);
+        } else {
+          const auto again = st->get_job(job->id);
+          const double wait = again ? static_cast<double>(again->scheduled_at - st->now()) / 1000 : 0;
+          spdlog::warn("job {} {} failed after {:.2f} s (attempt {}/{}), retrying in {:.1f} s: {}", job->id,
+                       job->kind, secs, job->attempt, job->max_attempts, std::max(0.0, wait), error);
+        }
       }
     } catch (const store::LeaseLost& e) {
       const auto now = st->get_job(job->id);

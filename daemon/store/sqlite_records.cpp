@@ -6,7 +6,7 @@ namespace mm::store::sqlite_detail {
 Customer SqliteStore::add_customer(const std::string& name, const std::string& actor) {
   if (!valid_customer_name(name))
     throw StoreError("invalid customer name '" + clip(name, 64) +
-                     "': use 1-64 letters, digits, '.', '_' or '-'");
+                     "': use 1-64 letters, digits, '.', '_' or '-', not starting with '.'");
   const keys::SecretKey& master = need_master();
   std::lock_guard<std::mutex> l(m_);
   Tx tx(db_);

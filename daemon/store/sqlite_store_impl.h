@@ -125,9 +125,11 @@ inline void require_json(const std::string& text, const char* what) {
 
 inline std::string clip(const std::string& s, std::size_t n) { return s.size() <= n ? s : s.substr(0, n) + "..."; }
 
+// The drop folders' rule too (service/drop_watcher.h): a leading '.' would name a hidden folder
+// that the watcher ignores, so such a customer could never be protected through it.
 inline bool valid_customer_name(const std::string& n) {
-  static const std::regex re("[A-Za-z0-9._-]{1,64}");
-  return std::regex_match(n, re) && n != "." && n != "..";
+  static const std::regex re("[A-Za-z0-9_-][A-Za-z0-9._-]{0,63}");
+  return std::regex_match(n, re);
 }
 
 inline std::string format_from_name(const std::string& name) {

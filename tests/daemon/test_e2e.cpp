@@ -718,3 +718,30 @@ TEST_F(E2E, FullDiskWhileWritingACopyIsRetriedAndLeavesNoOrphan) {
 }
 
 }  // namespace
+
+namespace {
+
+// Inputs over max_input_bytes or max_triangles are refused with the reason, before the work.
+TEST_F(E2E, InputsOverTheLimitsAreRefusedWithTheReason) {
+  const fs::path part = dir / "part.off";
+  ASSERT_EQ(std::system((std::string(MESHMARK_EXE) + " sample chamfered_block " + part.string() + " >/dev/null").c_str()), 0);
+  write_config({{"max_triangles", 100}});
+  ASSERT_EQ(meshmark_with_config("submit protect --customer alpha " + part.string()), 0);
+  meshmark_with_config("run --until-empty --no-drops");  // exits 1: the job was discarded
+  auto jobs = store()->list_jobs({});
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].state, mm::store::JobState::discarded);
+  EXPECT_NE(jobs[0].errors.at(0).error.find("part.off: 1628 triangles, over max_triangles (100)"), std::string::npos)
+      << jobs[0].errors[0].error;
+  write_config({{"max_input_bytes", 1000}});
+  ASSERT_EQ(meshmark_with_config("submit detect " + part.string()), 0);
+  meshmark_with_config("run --until-empty --no-drops");
+  jobs = store()->list_jobs({});
+  ASSERT_EQ(jobs.size(), 2u);
+  EXPECT_EQ(jobs[0].state, mm::store::JobState::discarded);
+  EXPECT_NE(jobs[0].errors.at(0).error.find("bytes, over max_input_bytes (1000)"), std::string::npos)
+      << jobs[0].errors[0].error;
+  EXPECT_TRUE(store()->list_copies().empty());
+}
+
+}  // namespace

@@ -155,7 +155,7 @@ TEST(Keys, StoreCustomerKeysRotateAndOldVersionsStay) {
   EXPECT_FALSE(s->customer_key(other.id).key == k1.key);
   EXPECT_THROW(s->customer_key(acme.id, 3), keys::KeyError);
   EXPECT_THROW(s->add_customer("acme"), store::StoreError);
-  for (const char* bad : {"", "../x", "a/b", "..", "has space", "x\n"})
+  for (const char* bad : {"", "../x", "a/b", "..", "has space", "x\n", "..x", ".hidden"})
     EXPECT_THROW(s->add_customer(bad), store::StoreError) << bad;
 
   // Wrong master key: refused when the store is opened; no master key at all: a clear KeyError.
