@@ -38,14 +38,7 @@ std::unique_ptr<store::Store> open(const Common& c, bool need_key = false) {
   return store::open_home(store::resolve_home(c.home), need_key);
 }
 
-std::string iso_time(Millis ms) {
-  std::time_t t = static_cast<std::time_t>(ms / 1000);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
+std::string iso_time(store::Millis ms) { return store::iso_utc(ms); }
 
 json opt_time(const std::optional<Millis>& t) { return t ? json(iso_time(*t)) : json(nullptr); }
 template <class T>

@@ -164,7 +164,10 @@ LoadedAsset get_or_prepare(store::Store& st, const store::Asset& asset, const Me
   try {
     prepared = jobs::prepare_asset(mesh, pp, asset.name);
   } catch (const InputError& e) {
-    throw PermanentError(std::string("compression failed: ") + e.what());
+    // The error's own source may be a library stage ("quality: ..."): the file is named first.
+    const std::string what = e.what();
+    throw PermanentError(what.rfind(asset.name, 0) == 0 ? "compression failed: " + what
+                                                         : asset.name + ": compression failed: " + what);
   } catch (const std::invalid_argument& e) {
     throw PermanentError(asset.name + ": compression failed: " + e.what());
   }

@@ -113,7 +113,12 @@ void WorkerPool::heartbeat_main() {
       try {
         hb_store_->heartbeat(job, worker, store::Millis(cfg->lease_seconds) * 1000);
       } catch (const store::LeaseLost&) {
-        spdlog::warn("job {}: lease lost by {} (reclaimed or cancelled)", job, worker);
+        // The worker may have completed the job since the snapshot: only a lease lost while it
+        // still runs the job is worth a warning.
+        std::lock_guard<std::mutex> g(m_);
+        const auto still = running_.find(worker);
+        if (still != running_.end() && still->second == job)
+          spdlog::warn("job {}: lease lost by {} (reclaimed or cancelled)", job, worker);
       } catch (const std::exception& e) {
         spdlog::warn("job {}: heartbeat failed: {}", job, e.what());
       }

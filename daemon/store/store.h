@@ -36,6 +36,8 @@ namespace mm::store {
 using Millis = std::int64_t;              // milliseconds since the Unix epoch
 using Clock = std::function<Millis()>;    // injectable time
 Millis system_clock_millis();
+// "2026-12-05T10:33:36Z": a record time as every report and listing shows it.
+std::string iso_utc(Millis ms);
 
 // Any store failure: I/O, constraint, busy beyond the timeout, unknown ids. Messages name the
 // operation and ids, never key bytes.
