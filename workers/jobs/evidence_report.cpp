@@ -82,6 +82,22 @@ Rgb heat(double t) {
           static_cast<std::uint8_t>(40 + 215 * b)};
 }
 
+// The report's plots: one size, fixed axis ranges.
+PlotOptions report_plot(const std::string& title, const std::string& x_label, const std::string& y_label,
+                        std::pair<double, double> x, std::pair<double, double> y) {
+  PlotOptions o;
+  o.width = 800;
+  o.height = 420;
+  o.title = title;
+  o.x_label = x_label;
+  o.y_label = y_label;
+  o.x_min = x.first;
+  o.x_max = x.second;
+  o.y_min = y.first;
+  o.y_max = y.second;
+  return o;
+}
+
 void blit(Image& dst, const Image& src, int x0, int y0) {
   for (int y = 0; y < src.height(); ++y)
     for (int x = 0; x < src.width(); ++x) dst.set(x0 + x, y0 + y, src.at(x, y));
@@ -190,16 +206,8 @@ ReportPicture null_picture(double observed_z, const std::vector<double>& other_z
   // Markers only: each copy its own one-point series, so no line joins them.
   for (std::size_t i = 0; i < other_z.size(); ++i)
     s.push_back({i == 0 ? "other copies" : "", {{other_z[i], 0.01}}, colours::grey, true});
-  PlotOptions o;
-  o.width = 800;
-  o.height = 420;
-  o.title = "SIGN STATISTIC AGAINST ITS NULL (Z)";
-  o.x_label = "Z = (CORRELATION - NULL MEAN) / NULL SD";
-  o.y_label = "DENSITY";
-  o.x_min = lo;
-  o.x_max = hi;
-  o.y_min = 0;
-  o.y_max = 0.45;
+  const PlotOptions o = report_plot("SIGN STATISTIC AGAINST ITS NULL (Z)", "Z = (CORRELATION - NULL MEAN) / NULL SD",
+                                    "DENSITY", {lo, hi}, {0, 0.45});
   return {"null", "The observed statistic against chance",
           "The curve is the distribution the sign statistic follows when a mesh carries no mark of the copy "
           "(measured on unrelated key sequences); the red line is this suspect's value for " + copy_label +
@@ -220,16 +228,8 @@ ReportPicture copy_scores_picture(const std::vector<std::pair<std::string, doubl
   s.push_back({"THRESHOLD",
                {{0.5, threshold_neg_log10_p}, {static_cast<double>(copies_neg_log10_p.size()) + 0.5, threshold_neg_log10_p}},
                colours::orange, false});
-  PlotOptions o;
-  o.width = 800;
-  o.height = 420;
-  o.title = "EVERY COPY TRIED: -LOG10 CORRECTED P";
-  o.x_label = "COPY (IN THE ORDER TRIED)";
-  o.y_label = "-LOG10 P";
-  o.x_min = 0.5;
-  o.x_max = static_cast<double>(copies_neg_log10_p.size()) + 0.5;
-  o.y_min = 0;
-  o.y_max = top;
+  const PlotOptions o = report_plot("EVERY COPY TRIED: -LOG10 CORRECTED P", "COPY (IN THE ORDER TRIED)", "-LOG10 P",
+                                    {0.5, static_cast<double>(copies_neg_log10_p.size()) + 0.5}, {0, top});
   return {"copies", "Every copy of the part, scored",
           "One bar per issued copy of the part. A copy is named only when its bar rises above the threshold "
           "line (red bars).",
