@@ -137,6 +137,7 @@ Mesh parse_input(const std::vector<std::uint8_t>& bytes, const std::string& name
 }
 
 struct LoadedAsset {
+  store::Asset asset;
   store::Polyhedron row;
   jobs::PreparedAsset prepared;
 };
@@ -156,10 +157,17 @@ jobs::PreparedAsset decode_row(store::Store& st, const store::Polyhedron& row) {
 
 // The asset's prepared polyhedron and basis: from the cache, or compressed once and stored
 // (blobs first, then the row; a concurrent worker doing the same gets the same bytes and row).
-LoadedAsset get_or_prepare(store::Store& st, const store::Asset& asset, const Mesh& mesh, const Config& cfg) {
+// The asset row is made only once the part has compressed, so an input that fails never becomes
+// an asset.
+LoadedAsset get_or_prepare(store::Store& st, const std::string& sha, const std::vector<std::uint8_t>& bytes,
+                           const std::string& name, const Mesh& mesh, const Config& cfg) {
   jobs::PrepareParams pp = prepare_params(cfg);
   const std::string key = pp.key();
-  if (auto row = st.find_polyhedron(asset.id, key)) return {*row, decode_row(st, *row)};
+  const std::optional<store::Asset> existing = st.find_asset(sha);
+  if (existing)
+    if (auto row = st.find_polyhedron(existing->id, key)) return {*existing, *row, decode_row(st, *row)};
+  const store::Asset named{0, sha, 0, name, "", 0};
+  const store::Asset& asset = existing ? *existing : named;
   jobs::PreparedAsset prepared;
   try {
     prepared = jobs::prepare_asset(mesh, pp, asset.name);
@@ -177,8 +185,9 @@ LoadedAsset get_or_prepare(store::Store& st, const store::Asset& asset, const Me
                asset.name, mesh.num_vertices(), prepared.control.num_vertices(), cr.angle_degrees,
                100 * cr.stats.hausdorff / cr.stats.diagonal, 100 * cr.stats.rms / cr.stats.diagonal,
                cr.tolerance_met ? "" : " (tolerance not met " + tolerance_miss_reason(cr, pp.compression) + ")");
+  const store::Asset stored = existing ? *existing : st.put_asset_bytes(bytes, name);
   store::Polyhedron row;
-  row.asset_id = asset.id;
+  row.asset_id = stored.id;
   row.params_key = key;
   row.polyhedron_blob = st.blobs().put(jobs::encode_polyhedron(prepared));
   row.basis_blob = st.blobs().put(serialize_basis(prepared.basis));
@@ -194,7 +203,7 @@ LoadedAsset get_or_prepare(store::Store& st, const store::Asset& asset, const Me
                        {"rounds", cr.rounds}}
                       .dump();
   row = st.put_polyhedron(row);
-  return {row, std::move(prepared)};
+  return {stored, row, std::move(prepared)};
 }
 
 std::string copy_idempotency_key(const store::Job& job) {
@@ -257,8 +266,8 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   if (out_format != "stl" && out_format != "obj" && out_format != "off" && out_format != "ply")
     throw PermanentError("job " + std::to_string(job.id) + ": unsupported output_format \"" + out_format + "\"");
 
-  store::Asset asset = st.put_asset_bytes(bytes, name);
-  LoadedAsset la = get_or_prepare(st, asset, mesh, cfg);
+  LoadedAsset la = get_or_prepare(st, sha, bytes, name, mesh, cfg);
+  const store::Asset& asset = la.asset;
   store::CustomerKey ck = st.customer_key(customer->id);
 
   // The payload must tell this copy apart from every other copy of the asset.

@@ -250,8 +250,8 @@ TEST_F(E2E, ProtectsTwoCustomersAndTracesTheLeak) {
   auto st = store();
   auto copies = st->list_copies();
   ASSERT_EQ(copies.size(), 8u);
-  // Deduplicated originals; flat.off is stored too (the original is kept before compressing).
-  EXPECT_EQ(st->list_assets().size(), 5u);
+  // Deduplicated originals; flat.off, which failed to compress, is not an asset.
+  EXPECT_EQ(st->list_assets().size(), 4u);
   for (const auto& c : copies) expect_outputs_intact(c);
   for (const auto& m : kMeshes) {
     json r = reason(drop / "done/protect/beta" / m);
@@ -742,6 +742,23 @@ TEST_F(E2E, InputsOverTheLimitsAreRefusedWithTheReason) {
   EXPECT_NE(jobs[0].errors.at(0).error.find("bytes, over max_input_bytes (1000)"), std::string::npos)
       << jobs[0].errors[0].error;
   EXPECT_TRUE(store()->list_copies().empty());
+}
+
+}  // namespace
+
+namespace {
+
+// A part that cannot be compressed fails its protect job and does not become an asset.
+TEST_F(E2E, AFailedProtectLeavesNoAsset) {
+  const fs::path flat = dir / "flat.off";
+  std::ofstream(flat) << "OFF\n5 5 0\n0 0 0\n1 0 0\n2 0 0\n3 0 0\n4 0 0\n3 0 1 4\n3 1 2 4\n3 2 3 4\n3 3 0 4\n4 0 3 2 1\n";
+  ASSERT_EQ(meshmark_with_config("submit protect --customer alpha " + flat.string()), 0);
+  meshmark_with_config("run --until-empty --no-drops");  // exits 1: the job was discarded
+  const auto jobs = store()->list_jobs({});
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].state, mm::store::JobState::discarded);
+  EXPECT_NE(jobs[0].errors.at(0).error.find("compression failed"), std::string::npos) << jobs[0].errors[0].error;
+  EXPECT_TRUE(store()->list_assets().empty());
 }
 
 }  // namespace
