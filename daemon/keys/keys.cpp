@@ -12,23 +12,14 @@
 #include <sstream>
 #include <system_error>
 
+#include "keys/key_text.h"
 #include "support/atomic_file.h"
 
 namespace mm::keys {
 namespace {
 
-void ensure_sodium() {
-  static const int rc = sodium_init();  // thread-safe, idempotent
-  if (rc < 0) throw KeyError("libsodium failed to initialize");
-}
-
-std::string trim(const std::string& s) {
-  const char* ws = " \t\r\n";
-  auto b = s.find_first_not_of(ws);
-  if (b == std::string::npos) return {};
-  auto e = s.find_last_not_of(ws);
-  return s.substr(b, e - b + 1);
-}
+using detail::ensure_sodium;
+using detail::trim;
 
 std::string associated_data(std::int64_t customer_id, int version) {
   return "meshmark-key|" + std::to_string(customer_id) + "|" + std::to_string(version);

@@ -11,25 +11,14 @@
 #include <fstream>
 #include <sstream>
 
+#include "keys/key_text.h"
 #include "support/atomic_file.h"
+#include "support/hex.h"
 #include "support/sha256.h"
 
 namespace mm::keys {
-namespace {
-
-void ensure_sodium() {
-  static const int rc = sodium_init();
-  if (rc < 0) throw KeyError("libsodium failed to initialize");
-}
-
-std::string trim(const std::string& s) {
-  const char* ws = " \t\r\n";
-  auto b = s.find_first_not_of(ws);
-  if (b == std::string::npos) return {};
-  return s.substr(b, s.find_last_not_of(ws) - b + 1);
-}
-
-}  // namespace
+using detail::ensure_sodium;
+using detail::trim;
 
 std::string to_base64(const std::string& bytes) {
   ensure_sodium();
@@ -63,7 +52,8 @@ PublicKey PublicKey::parse(const std::string& text, const std::string& source) {
   PublicKey k;
   std::string raw;
   if (t.size() == 64 && t.find_first_not_of("0123456789abcdefABCDEF") == std::string::npos) {
-    for (std::size_t i = 0; i < 32; ++i) k.bytes[i] = static_cast<std::uint8_t>(std::stoi(t.substr(2 * i, 2), nullptr, 16));
+    const std::vector<std::uint8_t> bytes = support::from_hex(t);
+    std::copy(bytes.begin(), bytes.end(), k.bytes.begin());
     return k;
   }
   try {
@@ -116,7 +106,7 @@ SigningKey rotate_signing_key(const std::string& file_path, const std::string& p
   const char* v = std::getenv(kSigningKeyEnv);
   if (v && *v)
     throw KeyError(std::string("the signing key comes from ") + kSigningKeyEnv + "; rotate it there");
-  record_public_key(load_or_create_signing_key(file_path, public_dir).public_key(), public_dir);
+  load_or_create_signing_key(file_path, public_dir);  // the old key's public half is recorded
   const std::string next = file_path + ".next";
   std::filesystem::remove(next);
   create_secret_key_file(next, "signing key file");
@@ -124,9 +114,7 @@ SigningKey rotate_signing_key(const std::string& file_path, const std::string& p
     std::filesystem::remove(next);
     throw KeyError("signing key file " + file_path + ": cannot replace it");
   }
-  SigningKey k = load_signing_key(file_path);
-  record_public_key(k.public_key(), public_dir);
-  return k;
+  return load_or_create_signing_key(file_path, public_dir);  // records the new public key
 }
 
 void record_public_key(const PublicKey& key, const std::string& public_dir) {

@@ -166,23 +166,22 @@ LoadedAsset get_or_prepare(store::Store& st, const std::string& sha, const std::
   const std::optional<store::Asset> existing = st.find_asset(sha);
   if (existing)
     if (auto row = st.find_polyhedron(existing->id, key)) return {*existing, *row, decode_row(st, *row)};
-  const store::Asset named{0, sha, 0, name, "", 0};
-  const store::Asset& asset = existing ? *existing : named;
+  const std::string& asset_name = existing ? existing->name : name;
   jobs::PreparedAsset prepared;
   try {
-    prepared = jobs::prepare_asset(mesh, pp, asset.name);
+    prepared = jobs::prepare_asset(mesh, pp, asset_name);
   } catch (const InputError& e) {
     // The error's own source may be a library stage ("quality: ..."): the file is named first.
     const std::string what = e.what();
-    throw PermanentError(what.rfind(asset.name, 0) == 0 ? "compression failed: " + what
-                                                         : asset.name + ": compression failed: " + what);
+    throw PermanentError(what.rfind(asset_name, 0) == 0 ? "compression failed: " + what
+                                                         : asset_name + ": compression failed: " + what);
   } catch (const std::invalid_argument& e) {
-    throw PermanentError(asset.name + ": compression failed: " + e.what());
+    throw PermanentError(asset_name + ": compression failed: " + e.what());
   }
   const CompressResult& cr = prepared.compression;
   spdlog::info("compressed {}: {} -> {} control vertices at a crease angle of {} degrees, Hausdorff {:.3f} %, RMS "
                "{:.3f} % of the diagonal{}",
-               asset.name, mesh.num_vertices(), prepared.control.num_vertices(), cr.angle_degrees,
+               asset_name, mesh.num_vertices(), prepared.control.num_vertices(), cr.angle_degrees,
                100 * cr.stats.hausdorff / cr.stats.diagonal, 100 * cr.stats.rms / cr.stats.diagonal,
                cr.tolerance_met ? "" : " (tolerance not met " + tolerance_miss_reason(cr, pp.compression) + ")");
   const store::Asset stored = existing ? *existing : st.put_asset_bytes(bytes, name);
@@ -538,9 +537,7 @@ store::JobRecords run_evidence(store::Store& st, const store::Job& job, const Ha
   if (!p.contains("detect_job") || !p["detect_job"].is_number_integer())
     throw PermanentError("job " + std::to_string(job.id) + ": payload needs \"detect_job\" (an integer job id)");
   const std::int64_t detect_job = p["detect_job"].get<std::int64_t>();
-  std::optional<store::Detection> det;
-  for (const auto& d : st.list_detections(kAllCopies))
-    if (d.job_id && *d.job_id == detect_job) det = d;
+  const std::optional<store::Detection> det = st.detection_of_job(detect_job);
   if (!det) throw PermanentError("job " + std::to_string(job.id) + ": detect job " + std::to_string(detect_job) +
                                  " recorded no detection");
   EvidenceOptions o;

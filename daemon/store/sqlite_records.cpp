@@ -208,6 +208,14 @@ std::optional<Detection> SqliteStore::get_detection(std::int64_t id) {
   return read_detection(q);
 }
 
+std::optional<Detection> SqliteStore::detection_of_job(std::int64_t job_id) {
+  std::lock_guard<std::mutex> l(m_);
+  Stmt q(db_, sel(kDetectionCols, "FROM detections WHERE job_id = ? ORDER BY id DESC LIMIT 1").c_str());
+  q.bind(1, job_id);
+  if (!q.step()) return std::nullopt;
+  return read_detection(q);
+}
+
 std::int64_t SqliteStore::append_audit(const NewAudit& a) {
   std::lock_guard<std::mutex> l(m_);
   Tx tx(db_);

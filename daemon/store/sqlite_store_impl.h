@@ -211,6 +211,7 @@ class SqliteStore final : public Store {
 
   std::vector<Detection> list_detections(int limit) override;
   std::optional<Detection> get_detection(std::int64_t id) override;
+  std::optional<Detection> detection_of_job(std::int64_t job_id) override;
 
   // ------------------------------------------------------------ audit
   std::int64_t append_audit(const NewAudit& a) override;

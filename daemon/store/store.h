@@ -280,6 +280,7 @@ class Store {
   virtual Detection record_detection(const NewDetection& d) = 0;
   virtual std::vector<Detection> list_detections(int limit = 1000) = 0;
   virtual std::optional<Detection> get_detection(std::int64_t id) = 0;
+  virtual std::optional<Detection> detection_of_job(std::int64_t job_id) = 0;  // the job's latest
 
   // Audit log.
   virtual std::int64_t append_audit(const NewAudit& a) = 0;

@@ -1,5 +1,7 @@
 #include "jobs/evidence_report.h"
 
+#include <sodium.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -45,18 +47,10 @@ std::string text_of(const json& j) {
 }
 
 std::string base64(const std::vector<std::uint8_t>& bytes) {
-  static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string o;
-  o.reserve((bytes.size() + 2) / 3 * 4);
-  for (std::size_t i = 0; i < bytes.size(); i += 3) {
-    const std::uint32_t n = (std::uint32_t(bytes[i]) << 16) | (i + 1 < bytes.size() ? std::uint32_t(bytes[i + 1]) << 8 : 0) |
-                            (i + 2 < bytes.size() ? std::uint32_t(bytes[i + 2]) : 0);
-    o += t[(n >> 18) & 63];
-    o += t[(n >> 12) & 63];
-    o += i + 1 < bytes.size() ? t[(n >> 6) & 63] : '=';
-    o += i + 2 < bytes.size() ? t[n & 63] : '=';
-  }
-  return o;
+  std::string out(sodium_base64_encoded_len(bytes.size(), sodium_base64_VARIANT_ORIGINAL), '\0');
+  sodium_bin2base64(out.data(), out.size(), bytes.data(), bytes.size(), sodium_base64_VARIANT_ORIGINAL);
+  out.resize(out.size() - 1);  // the terminating NUL
+  return out;
 }
 
 Points rows_of(const std::vector<Eigen::Vector3d>& v) {
