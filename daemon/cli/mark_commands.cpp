@@ -418,7 +418,7 @@ void add_extract_command(CLI::App& app) {
       << expected.size() << " bits wrong\n";
     o << "correlation: " << ex.correlation << " (" << ex.agreements << " of " << ex.compared << " signs agree)\n";
     o << "resync: " << rs.method;
-    if (rs.method == "subdivided") o << " level " << rs.level;
+    if (rs.method == "subdivided" || rs.method == "piece") o << " level " << rs.level;
     if (rs.resubdivided) o << " (level " << rs.level - 1 << " refined once more without crease tags)";
     o << (aligned ? ", similarity fitted" : ", in the original's frame") << ", residual " << rs.residual_rms
       << " of the diagonal\n";

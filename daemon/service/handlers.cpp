@@ -192,6 +192,7 @@ LoadedAsset get_or_prepare(store::Store& st, const std::string& sha, const std::
   row.basis_blob = st.blobs().put(serialize_basis(prepared.basis));
   json meta = json::parse(prepared.signature.to_json());
   row.meta_json = json{{"signature", meta},
+                       {"footprint", json::parse(prepared.footprint.to_json())},
                        {"control_vertices", prepared.control.num_vertices()},
                        {"input_vertices", mesh.num_vertices()},
                        {"levels", prepared.levels},

@@ -13,6 +13,7 @@
 #include "common/seeded_keys.h"
 #include "jobs/copy_identity.h"
 #include "jobs/detect_suspect.h"
+#include "attacks/crop.h"
 #include "jobs/payload.h"
 #include "samples/chamfered_block.h"
 #include "samples/flanged_cylinder.h"
@@ -75,7 +76,8 @@ struct Part {
       row.id = static_cast<std::int64_t>(store.polyhedra.size()) + 1;
       row.polyhedron_blob = sha_of("poly");
       row.basis_blob = sha_of("basis");
-      row.meta_json = "{\"signature\": " + asset.signature.to_json() + "}";
+      row.meta_json = "{\"signature\": " + asset.signature.to_json() + ", \"footprint\": " +
+                      surface_footprint(original).to_json() + "}";
       store.blobs[row.polyhedron_blob] = encode_polyhedron(asset);
       store.blobs[row.basis_blob] = serialize_basis(asset.basis);
       store.polyhedra[{1, prepare_key}] = row;
@@ -136,7 +138,7 @@ TEST_F(DetectSuspect, AnIssuedFileIsFoundByItsHashAndAttributedToItsCopy) {
 
 TEST_F(DetectSuspect, EveryCopyOfEveryPolyhedronIsCountedInTheCorrection) {
   const Detection d = detect_suspect(part->store, suspect(part->issued[0].decoded, "unknown"), {});
-  EXPECT_EQ(d.match, "shape signature");
+  EXPECT_EQ(d.match, "surface footprint");  // an issued copy lies on the original, in its units
   ASSERT_EQ(d.tried.size(), 2u);  // prepare keys "a" and "b"
   EXPECT_EQ(d.tried[0].scores.size(), 2u);
   EXPECT_EQ(d.tried[1].scores.size(), 1u);
@@ -164,6 +166,58 @@ TEST_F(DetectSuspect, TheUnmarkedOriginalIsNoWatermarkAndAForeignPartAnUnknownAs
   EXPECT_TRUE(f.candidates.empty());
   EXPECT_EQ(f.copies_tried, 0);
   EXPECT_FALSE(f.asset_id);
+}
+
+TEST_F(DetectSuspect, AMovedCopyOrARowWithoutAFootprintIsFoundByItsShapeSignature) {
+  Mesh moved = part->issued[0].decoded;
+  moved.points = (moved.points * 2.5).rowwise() + Eigen::RowVector3d(40, -3, 7);
+  const Detection d = detect_suspect(part->store, suspect(moved, "unknown"), {});
+  EXPECT_EQ(d.match, "shape signature");
+  EXPECT_EQ(d.verdict, "attributed");
+
+  MemoryStore st = part->store;  // polyhedra kept before footprints were
+  for (auto& [key, row] : st.polyhedra) row.meta_json = "{\"signature\": " + part->asset.signature.to_json() + "}";
+  const Detection old = detect_suspect(st, suspect(part->issued[0].decoded, "unknown"), {});
+  EXPECT_EQ(old.match, "shape signature");
+  EXPECT_EQ(old.verdict, "attributed");
+}
+
+TEST_F(DetectSuspect, AHalfCropOfAnIssuedCopyIsFoundAmongAThousandAssetsAndAttributed) {
+  // 999 other assets: the part at random places and sizes, and ten revisions of it shifted by
+  // 3 % of its size (a footprint holds much of a crop of those). Their rows share the real
+  // polyhedron, so any that is tried is aligned and scored like the real one.
+  MemoryStore st = part->store;
+  const PolyhedronRecord real = st.polyhedra.at({1, "a"});
+  const Eigen::RowVector3d size = part->original.points.colwise().maxCoeff() - part->original.points.colwise().minCoeff();
+  std::mt19937_64 rng(29);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (std::int64_t id = 2; id <= 1000; ++id) {
+    Mesh other = part->original;
+    if (id <= 11) {
+      other.points.rowwise() += 0.03 * Eigen::RowVector3d(u(rng), u(rng), u(rng)).normalized().cwiseProduct(size);
+    } else {
+      const double scale = std::exp(0.25 * u(rng));
+      other.points = (other.points * scale).rowwise() + Eigen::RowVector3d(u(rng), u(rng), u(rng)).cwiseProduct(size);
+    }
+    PolyhedronRecord row = real;
+    row.id = id + 100;
+    row.meta_json = "{\"signature\": " + shape_signature(other).to_json() + ", \"footprint\": " +
+                    surface_footprint(other).to_json() + "}";
+    st.polyhedra[{id, "a"}] = row;
+    IssuedCopyRecord c = part->issued[1].record;
+    c.id = 1000 + id;
+    c.asset_id = id;
+    st.copies.push_back(c);
+  }
+  const Mesh half = attacks::crop_along_longest_axis(part->issued[0].decoded, 0.5);
+  const Detection d = detect_suspect(st, suspect(half, "unknown"), {});
+  EXPECT_EQ(d.match, "surface footprint");
+  ASSERT_FALSE(d.candidates.empty());
+  EXPECT_EQ(d.candidates.front(), 1);
+  EXPECT_EQ(d.verdict, "attributed") << d.best_neg_log10_corrected_p;
+  ASSERT_TRUE(d.copy_id);
+  EXPECT_EQ(*d.copy_id, 11);
+  for (const auto& a : d.attributed) EXPECT_EQ(a.customer_id, 1);
 }
 
 TEST_F(DetectSuspect, AStreamIsFoundByTheAssetItNames) {

@@ -13,26 +13,44 @@ namespace {
 
 using nlohmann::json;
 
+// Shares of a suspect's points an asset's footprint must hold for the asset to be a candidate:
+// within a cell of its surface (cut faces or stray points may leave a few outside), and in the
+// surface's own cells (a suspect moved into another part's box lands near its cells by chance:
+// about half in the shared parts' measurements, docs/daemon.md).
+constexpr double kCoveredNear = 0.9;
+constexpr double kCoveredExact = 0.6;
+
 const char* method_name(Method m) { return m == Method::Additive ? "additive" : "multiplicative"; }
 
-// The asset's shape signature, kept with each of its polyhedra.
-std::optional<ShapeSignature> asset_signature(DetectionStore& st, std::int64_t asset_id,
-                                              const std::vector<IssuedCopyRecord>& copies,
-                                              std::vector<std::string>* warnings) {
+// What the asset's polyhedron row keeps of the original's shape (either may be absent: rows
+// written before footprints were kept have none).
+struct AssetShape {
+  std::optional<ShapeSignature> signature;
+  std::optional<SurfaceFootprint> footprint;
+};
+
+AssetShape asset_shape(DetectionStore& st, std::int64_t asset_id, const std::vector<IssuedCopyRecord>& copies,
+                       std::vector<std::string>* warnings) {
+  AssetShape shape;
   for (const auto& c : copies) {
     auto row = st.polyhedron(asset_id, copy_prepare_key(c.params_json));
     if (!row) continue;
     try {
-      return ShapeSignature::from_json(json::parse(row->meta_json).at("signature").dump());
+      const json meta = json::parse(row->meta_json);
+      shape.signature = ShapeSignature::from_json(meta.at("signature").dump());
+      if (meta.contains("footprint")) shape.footprint = SurfaceFootprint::from_json(meta.at("footprint").dump());
     } catch (const std::exception& e) {
       warnings->push_back("asset " + std::to_string(asset_id) + ": no usable shape signature: " + e.what());
-      return std::nullopt;
     }
+    return shape;
   }
-  return std::nullopt;
+  return shape;
 }
 
-// Candidate assets in the order they are tried, and how they were found.
+// Candidate assets in the order they are tried, and how they were found. Without a hash or
+// stream match: the assets whose surface, in their own units, holds nearly all of the suspect
+// (a copy as issued, or a piece cut from one), best covered first; when none does, those whose
+// shape signature resembles the suspect's (a moved, rescaled or re-tessellated whole copy).
 std::vector<std::int64_t> candidate_assets(DetectionStore& st, const Suspect& suspect,
                                            const std::map<std::int64_t, std::vector<IssuedCopyRecord>>& copies_of,
                                            int max_candidates, std::string* match,
@@ -61,20 +79,28 @@ std::vector<std::int64_t> candidate_assets(DetectionStore& st, const Suspect& su
   if (candidates.empty() && named != suspect.stream_metadata.end())
     if (auto a = st.asset_with_sha256(named->second)) add(*a), *match = "stream metadata";
   if (candidates.empty()) {
-    ShapeSignature sig = shape_signature(suspect.mesh);
-    std::vector<std::pair<double, std::int64_t>> ranked;
+    const ShapeSignature sig = shape_signature(suspect.mesh);
+    const FootprintProbe probe = footprint_probe(suspect.mesh);
+    std::vector<std::pair<double, std::int64_t>> covering, resembling;
     for (const auto& [asset_id, copies] : copies_of) {
-      auto as = asset_signature(st, asset_id, copies, warnings);
-      if (!as) continue;
-      double d = signature_distance(sig, *as);
-      if (d < 0.5) ranked.push_back({d, asset_id});
+      const AssetShape shape = asset_shape(st, asset_id, copies, warnings);
+      if (shape.footprint) {
+        if (covered_fraction(*shape.footprint, probe) >= kCoveredNear) {
+          const double exact = covered_fraction(*shape.footprint, probe, 0);
+          if (exact >= kCoveredExact) covering.push_back({-exact, asset_id});
+        }
+      }
+      if (shape.signature) {
+        const double d = signature_distance(sig, *shape.signature);
+        if (d < 0.5) resembling.push_back({d, asset_id});
+      }
     }
-    std::sort(ranked.begin(), ranked.end());
-    for (const auto& r : ranked) {
-      if (static_cast<int>(candidates.size()) >= max_candidates) break;
-      add(r.second);
-    }
-    if (!candidates.empty()) *match = "shape signature";
+    std::sort(covering.begin(), covering.end());
+    std::sort(resembling.begin(), resembling.end());
+    for (const auto& r : covering.empty() ? resembling : covering)
+      if (static_cast<int>(candidates.size()) < max_candidates) add(r.second);
+    if (!candidates.empty())
+      *match = covering.empty() ? "shape signature" : "surface footprint";
   }
   return candidates;
 }

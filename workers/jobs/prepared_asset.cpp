@@ -234,6 +234,7 @@ PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
   apply(a.normalization, a.control.points);
   a.levels = a.compression.levels;
   a.signature = shape_signature(original);
+  a.footprint = surface_footprint(original);
   a.basis = compute_basis(a.control);
   return a;
 }

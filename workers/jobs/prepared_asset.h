@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "fitting/compress.h"
+#include "geometry/surface_footprint.h"
 #include "meshio/mesh.h"
 #include "meshio/normalize.h"
 #include "spectral/spectral_basis.h"
@@ -53,6 +54,7 @@ struct PreparedAsset {
   Normalization normalization;  // original units -> unit box
   SpectralBasis basis;          // of control's connectivity
   ShapeSignature signature;     // of the original
+  SurfaceFootprint footprint;   // of the original, in its units (prepare_asset only; not serialised)
   int levels = 0;               // subdivision levels of the decoded copy
   CompressResult compression;   // statistics of the fit (prepare_asset only; not serialised)
 };

@@ -38,7 +38,7 @@ Similarity Similarity::after(const Similarity& first) const {
   return s;
 }
 
-Similarity fit_similarity(const Points& src, const Points& dst, const Eigen::VectorXd* weights) {
+Similarity fit_similarity(const Points& src, const Points& dst, const Eigen::VectorXd* weights, double fixed_scale) {
   if (src.rows() != dst.rows()) throw std::invalid_argument("fit_similarity: row counts differ");
   const Eigen::Index n = src.rows();
   Eigen::VectorXd w = weights ? *weights : Eigen::VectorXd::Ones(n);
@@ -58,7 +58,7 @@ Similarity fit_similarity(const Points& src, const Points& dst, const Eigen::Vec
   if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0) sign[2] = -1;
   Similarity out;
   out.rotation = svd.matrixU() * sign.asDiagonal() * svd.matrixV().transpose();
-  out.scale = var > 0 ? svd.singularValues().dot(sign) / var : 1.0;
+  out.scale = fixed_scale > 0 ? fixed_scale : var > 0 ? svd.singularValues().dot(sign) / var : 1.0;
   if (!(out.scale > 0) || !std::isfinite(out.scale)) out.scale = 1.0;
   out.translation = cd - out.scale * cs * out.rotation.transpose();
   return out;
@@ -157,7 +157,7 @@ IcpResult icp_similarity(const Points& moving, const ClosestPoint& closest, cons
     if (it == iterations || !(rms > 0)) break;
     if (std::isfinite(previous) && std::abs(previous - rms) <= o.tolerance * std::max(previous, 1e-300)) break;
     // Fit against the original moving points so rounding does not accumulate.
-    r.transform = fit_similarity(src, dst, &w);
+    r.transform = fit_similarity(src, dst, &w, o.keep_scale ? start.scale : 0);
     r.iterations = it + 1;
   }
   return r;

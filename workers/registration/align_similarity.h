@@ -25,9 +25,11 @@ struct Similarity {
 };
 
 // Least-squares similarity mapping src rows onto dst rows (Umeyama 1991), optionally weighted
-// (weights >= 0, same length as the rows). Reflections are excluded. Throws std::invalid_argument
-// for mismatched sizes or fewer than 3 rows of positive weight.
-Similarity fit_similarity(const Points& src, const Points& dst, const Eigen::VectorXd* weights = nullptr);
+// (weights >= 0, same length as the rows). Reflections are excluded. fixed_scale > 0: the scale is
+// that, and rotation and translation are fitted (a rigid motion of the scaled rows). Throws
+// std::invalid_argument for mismatched sizes or fewer than 3 rows of positive weight.
+Similarity fit_similarity(const Points& src, const Points& dst, const Eigen::VectorXd* weights = nullptr,
+                          double fixed_scale = 0);
 
 // Similarity mapping `moved` -- the vertices of `original` in another frame, plus a small
 // displacement such as a watermark and noise -- back onto `original`, estimated so that the
@@ -50,6 +52,9 @@ struct IcpOptions {
   int probe_points = 1500;     // evenly strided subset of the moving points used while probing
   double trim_fraction = 0.1;  // worst correspondences ignored in each fit (outliers, holes)
   double tolerance = 1e-12;    // stop when the relative change of the trimmed RMS is below this
+  // Rigid: keep the starting transform's scale. One-way pairs (no fixed samples) with a free
+  // scale can shrink the moving points onto a flat patch of the fixed surface.
+  bool keep_scale = false;
 };
 
 struct IcpResult {

@@ -21,6 +21,8 @@ namespace mm::registration_detail {
 // Reverse pairs farther than this many times the forward pairs' RMS distance are not covered by
 // the suspect (noise and the mark keep covered ones within about twice it).
 constexpr double kCoverage = 4;
+// A suspect-to-original alignment replaces the two-way one when its RMS is below this share.
+constexpr double kPartialGain = 0.5;
 
 Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, const ResyncOptions& o) {
   Resynchronized r;
@@ -39,6 +41,17 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
     const Points moving = sample_area(suspect.points, tris, o.alignment_samples, o.seed + 1);
     const Points fixed = strided(fit.samples, o.alignment_samples);
     r.to_control_frame = align_similarity(moving, moving, fixed, closest, o.icp).transform;
+    // A crop covers part of the original: pairing the original's samples with it (above) drags
+    // the similarity towards covering everything. Suspect-to-original pairs alone, from the
+    // asset's frame (where an issued copy lies) and from the pose above, do not; kept when they
+    // explain the suspect far better.
+    const double full = icp_similarity(moving, closest, Points(), r.to_control_frame, o.icp, 0).rms;
+    IcpOptions rigid = o.icp;
+    rigid.keep_scale = true;
+    IcpResult partial = icp_similarity(moving, closest, Points(), Similarity(), rigid);
+    const IcpResult refined = icp_similarity(moving, closest, Points(), r.to_control_frame, rigid);
+    if (refined.rms < partial.rms) partial = refined;
+    if (partial.rms < kPartialGain * full) r.to_control_frame = partial.transform;
   }
   const Similarity& T = r.to_control_frame;
   const Similarity Tinv = T.inverse();

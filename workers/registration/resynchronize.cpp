@@ -354,6 +354,10 @@ constexpr double kExactPairs = 1e-6;
 // moved one is not, and pairing it unmoved only pays for nearest-vertex queries far from every
 // original vertex (a blade copy scaled by 3 and shifted: 4.0 s of detection).
 constexpr double kSameFrame = 0.05;
+
+// A piece's pairs explain it to within this share of the diagonal (RMS), or it is not a piece
+// of a copy: the mark and noise of 0.5 % of the largest side leave less.
+constexpr double kPieceResidual = 5e-3;
 bool in_same_frame(const Points& original, const Points& suspect, double diagonal) {
   if (suspect.rows() == 0) return false;
   const double lo = (original.colwise().minCoeff() - suspect.colwise().minCoeff()).norm();
@@ -433,6 +437,40 @@ void refine_alignment(const ResyncContext::Impl& ctx, const ResyncOptions& o, Re
   r->points = c.apply(r->points);
   r->to_control_frame = c.after(r->to_control_frame);
   r->residual_rms *= c.scale;
+}
+
+double median_edge_length(const Mesh& mesh) {
+  std::vector<double> lengths;
+  for (const auto& [a, b] : unique_edges(mesh)) lengths.push_back((mesh.points.row(a) - mesh.points.row(b)).norm());
+  if (lengths.empty()) return 0;
+  std::nth_element(lengths.begin(), lengths.begin() + static_cast<std::ptrdiff_t>(lengths.size() / 2), lengths.end());
+  return lengths[lengths.size() / 2];
+}
+
+// A piece cut from a copy as issued (a crop): fewer vertices than any whole level, but each one
+// a refined vertex of the level its edge lengths name (halved per level), in the original's
+// frame. Paired unmoved; accepted when the pairs cover min_matched_fraction of the suspect's
+// vertices (not of the level's) and explain them to within the mark. The control points the
+// piece does not reach stay at the original's positions, so they carry no mark either way.
+std::optional<Resynchronized> piece_of_copy(const ResyncContext::Impl& ctx, const Mesh& suspect,
+                                            const ResyncOptions& o, int top) {
+  const int ns = suspect.num_vertices();
+  const double control_edge = median_edge_length(ctx.control), suspect_edge = median_edge_length(suspect);
+  if (top < 1 || !(control_edge > 0) || !(suspect_edge > 0)) return std::nullopt;
+  const int l = std::clamp(static_cast<int>(std::lround(std::log2(control_edge / suspect_edge))), 1, top);
+  const double nr = static_cast<double>(ctx.vertex_counts[static_cast<size_t>(l)]);
+  if (ns >= (1 - o.count_tolerance) * nr) return std::nullopt;  // whole levels were tried above
+  const LevelData& level = ctx.level(l);
+  ResyncOptions unmoved = o;
+  unmoved.align = false;
+  const Matching m = match_vertices(level, suspect.points, unmoved);
+  if (m.matched < o.min_start_fraction * ns) return std::nullopt;
+  Resynchronized r = from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m, o.matching_rounds);
+  const double paired = r.matched_fraction * nr / ns;
+  if (paired < o.min_matched_fraction || !(r.residual_rms <= kPieceResidual)) return std::nullopt;
+  r.matched_fraction = paired;
+  r.method = "piece";
+  return r;
 }
 
 }  // namespace
@@ -559,6 +597,9 @@ Resynchronized resynchronize(const ResyncContext& context, const Mesh& suspect, 
     if (!unmoved) refine_alignment(ctx, o, &r);
     if (l == 0) r.residual_rms = rms_rows(r.points, ctx.control.points) / ctx.diagonal;
     return r;
+  }
+  if (!o.force_surface_fit) {
+    if (auto piece = piece_of_copy(ctx, suspect, o, top)) return *piece;
   }
   Resynchronized r = surface_fit(ctx, suspect, o);
   refine_alignment(ctx, o, &r);

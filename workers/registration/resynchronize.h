@@ -19,11 +19,18 @@
 //    subdivided once more by the plain scheme (a decoded file has no crease tags): that
 //    hypothesis, T = untagged step * S_{L-1}, is solved too and kept when its residual is smaller
 //    (`resubdivided`).
+//  - "piece": a piece cut from a subdivided copy as issued (a crop): fewer vertices than any
+//    level, each a refined vertex of the level its edge lengths name, in the original's frame.
+//    Paired unmoved with those refined vertices and solved from the pairs alone; control points
+//    the piece does not reach stay at the original's positions.
 //  - "surface-fit": anything else (remeshed, re-tessellated). Similarity ICP against the original
 //    refined surface, then a few rounds of a linear point-to-plane fit of the control points with
 //    the original's topology, closest-point pairs both ways (as fitting/fit_control_points),
 //    pulled towards the original control points rather than smoothed: a Laplacian would erase
 //    the high-frequency mark. Only the mark's normal component is observable on a surface.
+//    A suspect that covers part of the original (a crop, remeshed or noisy) is aligned by
+//    suspect-to-original pairs alone, rigidly from the original's frame, when those explain it
+//    far better than the two-way pairs, which drag it towards covering everything.
 // Alignment uses 7 degrees of freedom (scale, rotation, translation) fitted to many
 // correspondences, then re-estimated on the recovered control points with a spectrum-flattening
 // weight (fit_similarity_preserving_mark), so it takes little of the mark with it.
@@ -75,8 +82,8 @@ struct ResyncOptions {
 
 struct Resynchronized {
   Points points;             // control.num_vertices() x 3, in the control's frame and vertex order
-  std::string method;        // "polyhedron", "subdivided", "surface-fit"
-  int level = 0;             // subdivision level recognised ("subdivided"), else 0
+  std::string method;        // "polyhedron", "subdivided", "piece", "surface-fit"
+  int level = 0;             // subdivision level recognised ("subdivided", "piece"), else 0
   double residual_rms = 0;   // RMS of the data the solution could not explain (suspect points or
                              // closest-point distances, after alignment) / control bbox diagonal
   double matched_fraction = 1;   // suspect data used: matched vertices or accepted samples
