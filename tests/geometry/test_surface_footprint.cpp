@@ -41,8 +41,17 @@ TEST(SurfaceFootprint, MarksEveryCellALargeFacetCrosses) {
   const mm::FootprintProbe probe = mm::footprint_probe(points_mesh(top));
   EXPECT_EQ(mm::covered_fraction(f, probe, 0), 1.0);
   // The box is hollow: its middle is not surface.
-  const mm::FootprintProbe inside = mm::footprint_probe(points_mesh({{2, 1, 0.5}, {1.5, 1, 0.5}}));
+  const mm::FootprintProbe inside = mm::footprint_probe(points_mesh({{0.5, 1, 0.5}, {2, 1, 0.5}, {3.5, 1, 0.5}}));
   EXPECT_EQ(mm::covered_fraction(f, inside), 0.0);
+}
+
+TEST(SurfaceFootprint, ASuspectSpanningAFewCellsIsHeldByNone) {
+  const mm::SurfaceFootprint f = mm::surface_footprint(box(), 32);  // cells of 0.125
+  std::vector<Eigen::Vector3d> small, wider;
+  for (int i = 0; i < 10; ++i) small.emplace_back(1 + 0.05 * i, 1.0, 1.0), wider.emplace_back(1 + 0.15 * i, 1.0, 1.0);
+  EXPECT_EQ(mm::covered_fraction(f, mm::footprint_probe(points_mesh(small))), 0.0);  // 0.45: under 8 cells
+  EXPECT_EQ(mm::covered_fraction(f, mm::footprint_probe(points_mesh(small)), 1, 2), 1.0);
+  EXPECT_EQ(mm::covered_fraction(f, mm::footprint_probe(points_mesh(wider))), 1.0);  // 1.35: 10.8 cells
 }
 
 TEST(SurfaceFootprint, ANeighbouringCellAbsorbsNoiseButNotAShift) {

@@ -107,9 +107,10 @@ FootprintProbe footprint_probe(const Mesh& suspect, int max_points) {
   return probe;
 }
 
-double covered_fraction(const SurfaceFootprint& footprint, const FootprintProbe& probe, int reach) {
+double covered_fraction(const SurfaceFootprint& footprint, const FootprintProbe& probe, int reach, int min_cells) {
   const SurfaceFootprint& f = footprint;
   if (f.empty() || probe.points.rows() == 0 || !probe.points.allFinite()) return 0;
+  if ((probe.hi - probe.lo).maxCoeff() < min_cells * f.cell) return 0;
   for (int a = 0; a < 3; ++a)
     if (probe.lo[a] < f.lo[a] - f.cell || probe.hi[a] > f.lo[a] + (f.dims[a] + 1) * f.cell) return 0;
   long covered = 0;

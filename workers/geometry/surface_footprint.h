@@ -38,8 +38,10 @@ FootprintProbe footprint_probe(const Mesh& suspect, int max_points = 2000);
 
 // Share of the probe's points lying in an occupied cell or, with reach 1, one of its 26
 // neighbours, which absorbs noise and a watermark up to a cell (reach 0: the point's own cell,
-// which ranks assets that all hold a suspect). 0 for an empty footprint or probe, and at once
-// when the probe's box reaches more than a cell outside the footprint's.
-double covered_fraction(const SurfaceFootprint& footprint, const FootprintProbe& probe, int reach = 1);
+// which ranks assets that all hold a suspect). 0 for an empty footprint or probe, when the
+// probe's box reaches more than a cell outside the footprint's, and when the probe spans fewer
+// than min_cells cells along its longest side: a few cells of a large part hold any small one.
+double covered_fraction(const SurfaceFootprint& footprint, const FootprintProbe& probe, int reach = 1,
+                        int min_cells = 8);
 
 }  // namespace mm

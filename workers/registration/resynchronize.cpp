@@ -355,9 +355,11 @@ constexpr double kExactPairs = 1e-6;
 // original vertex (a blade copy scaled by 3 and shifted: 4.0 s of detection).
 constexpr double kSameFrame = 0.05;
 
-// A piece's pairs explain it to within this share of the diagonal (RMS), or it is not a piece
-// of a copy: the mark and noise of 0.5 % of the largest side leave less.
-constexpr double kPieceResidual = 5e-3;
+// A piece's pairs explain it to within this share of the diagonal (RMS): a crop of a decoded
+// copy leaves float precision (1e-8 to 1e-10 on the shared parts). A simplified copy (vertices
+// moved to the collapses' optimal points, 3e-3) or a noisy piece is left to the surface fit,
+// which recovers more of the mark from it.
+constexpr double kPieceResidual = 1e-6;
 bool in_same_frame(const Points& original, const Points& suspect, double diagonal) {
   if (suspect.rows() == 0) return false;
   const double lo = (original.colwise().minCoeff() - suspect.colwise().minCoeff()).norm();

@@ -22,7 +22,8 @@
 //  - "piece": a piece cut from a subdivided copy as issued (a crop): fewer vertices than any
 //    level, each a refined vertex of the level its edge lengths name, in the original's frame.
 //    Paired unmoved with those refined vertices and solved from the pairs alone; control points
-//    the piece does not reach stay at the original's positions.
+//    the piece does not reach stay at the original's positions. Only for pieces the pairs explain
+//    to float precision; a noisy or simplified piece goes to the surface fit.
 //  - "surface-fit": anything else (remeshed, re-tessellated). Similarity ICP against the original
 //    refined surface, then a few rounds of a linear point-to-plane fit of the control points with
 //    the original's topology, closest-point pairs both ways (as fitting/fit_control_points),
