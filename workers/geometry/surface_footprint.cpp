@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <stdexcept>
 #include <nlohmann/json.hpp>
 
 #include "meshio/mesh.h"
+#include "support/hex.h"
 
 namespace mm {
 
@@ -124,11 +127,10 @@ std::string SurfaceFootprint::to_json() const {
   j["lo"] = {lo[0], lo[1], lo[2]};
   j["cell"] = cell;
   j["dims"] = {dims[0], dims[1], dims[2]};
-  static const char* hex = "0123456789abcdef";
-  std::string bits((occupied.size() + 3) / 4, '0');
+  std::vector<std::uint8_t> bytes((occupied.size() + 7) / 8, 0);
   for (size_t i = 0; i < occupied.size(); ++i)
-    if (occupied[i]) bits[i / 4] = hex[(bits[i / 4] >= 'a' ? bits[i / 4] - 'a' + 10 : bits[i / 4] - '0') | (1 << (i % 4))];
-  j["cells"] = bits;
+    if (occupied[i]) bytes[i / 8] = static_cast<std::uint8_t>(bytes[i / 8] | (1u << (i % 8)));
+  j["cells"] = support::to_hex(bytes.data(), bytes.size());
   return j.dump();
 }
 
@@ -145,15 +147,16 @@ SurfaceFootprint SurfaceFootprint::from_json(const std::string& text) {
     const size_t n = static_cast<size_t>(f.dims[0]) * f.dims[1] * f.dims[2];
     if (!(f.cell > 0) || !std::isfinite(f.cell) || !f.lo.allFinite() || n > (size_t{1} << 24))
       throw InputError("surface footprint", "malformed grid");
-    const std::string bits = j.at("cells").get<std::string>();
-    if (bits.size() != (n + 3) / 4) throw InputError("surface footprint", "cell bits do not match the grid");
-    f.occupied.assign(n, false);
-    for (size_t i = 0; i < n; ++i) {
-      const char h = bits[i / 4];
-      int v = h >= '0' && h <= '9' ? h - '0' : h >= 'a' && h <= 'f' ? h - 'a' + 10 : -1;
-      if (v < 0) throw InputError("surface footprint", "cell bits are not hex");
-      f.occupied[i] = (v >> (i % 4)) & 1;
+    const std::string hex = j.at("cells").get<std::string>();
+    if (hex.size() != 2 * ((n + 7) / 8)) throw InputError("surface footprint", "cell bits do not match the grid");
+    std::vector<std::uint8_t> bytes;
+    try {
+      bytes = support::from_hex(hex);
+    } catch (const std::invalid_argument&) {
+      throw InputError("surface footprint", "cell bits are not hex");
     }
+    f.occupied.assign(n, false);
+    for (size_t i = 0; i < n; ++i) f.occupied[i] = (bytes[i / 8] >> (i % 8)) & 1;
     return f;
   } catch (const nlohmann::json::exception& e) {
     throw InputError("surface footprint", std::string("malformed: ") + e.what());

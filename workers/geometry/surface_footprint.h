@@ -19,7 +19,7 @@ struct SurfaceFootprint {
   std::vector<bool> occupied;                    // x fastest, then y, then z
 
   bool empty() const { return cell <= 0; }
-  std::string to_json() const;                            // the occupied cells as hex bits
+  std::string to_json() const;                            // the occupied cells as hex bytes
   static SurfaceFootprint from_json(const std::string&);  // InputError("surface footprint", ...)
 };
 

@@ -355,11 +355,6 @@ constexpr double kExactPairs = 1e-6;
 // original vertex (a blade copy scaled by 3 and shifted: 4.0 s of detection).
 constexpr double kSameFrame = 0.05;
 
-// A piece's pairs explain it to within this share of the diagonal (RMS): a crop of a decoded
-// copy leaves float precision (1e-8 to 1e-10 on the shared parts). A simplified copy (vertices
-// moved to the collapses' optimal points, 3e-3) or a noisy piece is left to the surface fit,
-// which recovers more of the mark from it.
-constexpr double kPieceResidual = 1e-6;
 bool in_same_frame(const Points& original, const Points& suspect, double diagonal) {
   if (suspect.rows() == 0) return false;
   const double lo = (original.colwise().minCoeff() - suspect.colwise().minCoeff()).norm();
@@ -441,6 +436,12 @@ void refine_alignment(const ResyncContext::Impl& ctx, const ResyncOptions& o, Re
   r->residual_rms *= c.scale;
 }
 
+// A piece's pairs explain it to within this share of the diagonal (RMS): a crop of a decoded
+// copy leaves float precision (1e-11 to 1e-8 on the shared parts). A simplified copy (vertices
+// moved to the collapses' optimal points, 3e-3) or a noisy piece is left to the surface fit,
+// which recovers more of the mark from it.
+constexpr double kPieceResidual = 1e-6;
+
 double median_edge_length(const Mesh& mesh) {
   std::vector<double> lengths;
   for (const auto& [a, b] : unique_edges(mesh)) lengths.push_back((mesh.points.row(a) - mesh.points.row(b)).norm());
@@ -452,7 +453,7 @@ double median_edge_length(const Mesh& mesh) {
 // A piece cut from a copy as issued (a crop): fewer vertices than any whole level, but each one
 // a refined vertex of the level its edge lengths name (halved per level), in the original's
 // frame. Paired unmoved; accepted when the pairs cover min_matched_fraction of the suspect's
-// vertices (not of the level's) and explain them to within the mark. The control points the
+// vertices (not of the level's) and explain them to kPieceResidual. The control points the
 // piece does not reach stay at the original's positions, so they carry no mark either way.
 std::optional<Resynchronized> piece_of_copy(const ResyncContext::Impl& ctx, const Mesh& suspect,
                                             const ResyncOptions& o, int top) {
