@@ -336,13 +336,17 @@ void add_extract_command(CLI::App& app) {
     bool aligned = false;
     const double mark = mark_rms(ctl, rec.message_bits, rec.params);
     const Resynchronized rs = resync(ctx, ctl, suspect, opts, mark, aligned);
+    const SurfaceOffsets surface =
+        rs.method == "surface-fit" ? surface_offsets(ctx, suspect, rs.to_control_frame) : SurfaceOffsets{};
 
     const std::vector<bool> expected = message_to_bits(rec.message);
     // Scored as the daemon scores a copy (jobs::copy_statistics): the sign count with its
     // calibrated null, the matched score, the verdict on the smaller p of the two, doubled.
     const jobs::CopyStatistics st = jobs::copy_statistics(
         ctl.basis, ctl.normalized.points, rs.points,
-        coefficient_evidence(ctl.basis, ctl.normalized.points, rs.points, rec.message_bits, rec.params), key,
+        jobs::suspect_evidence(ctl.basis, ctl.normalized.points, rs.points, surface.empty() ? nullptr : &surface,
+                               rec.message_bits, rec.params),
+        key,
         rec.nonce, rec.params, expected);
     const Extraction& ex = st.sign;
     const NullCalibration& cal = st.calibration;

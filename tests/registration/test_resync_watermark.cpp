@@ -13,6 +13,7 @@
 #include <random>
 
 #include "attacks/perturb.h"
+#include "attacks/retessellate.h"
 #include "codec/stream.h"
 #include "common/shared_meshes.h"
 #include "common/temp_dir.h"
@@ -22,8 +23,11 @@
 #include "fitting/sharp_features.h"
 #include "registration/remesh.h"
 #include "registration/resynchronize.h"
+#include "registration/surface_offsets.h"
 #include "subdivision/decompress.h"
 #include "subdivision/subdivide.h"
+#include "watermark/matched_score.h"
+#include "watermark/surface_evidence.h"
 #include "watermark/watermark.h"
 
 namespace {
@@ -396,4 +400,55 @@ TEST(ResyncWatermark, DecimatedSurfaceIsFitted) {
   EXPECT_EQ(r.method, "piece");
   EXPECT_LT(r.residual_rms, 1e-12);
   EXPECT_GT(y.p_value, 0.01);
+}
+
+TEST(ResyncWatermark, RemeshedCopyIsTracedOnItsSurface) {
+  MM_REQUIRE_SHARED_MESHES();
+  const Fixture& f = fixture();
+  // Isotropic remeshing at 2 % of the diagonal: about 4k vertices on the marked surface, none of
+  // them a refined vertex. The control points fitted to it carry little of the mark; the
+  // suspect's normal offsets regressed on the mark's shapes carry it whole.
+  const EmbedParams m2{Method::Additive, 0.01, 0.05};
+  Mesh marked2 = f.control;
+  marked2.points = embed(f.basis, f.control.points, f.message, f.key, f.nonce, m2);
+  const Mesh suspect = attacks::remesh_isotropic(subdivide(marked2, 3), 0.02);
+  const Mesh clean = attacks::remesh_isotropic(subdivide(f.control, 3), 0.02);
+  const int usable = usable_coefficients(f.basis);
+  auto surface_score = [&](const Mesh& m, const Key& key, const std::vector<bool>& message) {
+    const Resynchronized r = resynchronize(*f.context, m);
+    EXPECT_EQ(r.method, "surface-fit");
+    const SurfaceOffsets s = surface_offsets(*f.context, m, r.to_control_frame);
+    EXPECT_GT(s.offsets.size(), m.num_vertices() * 9 / 10);
+    const CoefficientEvidence ev =
+        surface_evidence(f.basis, f.control.points, s.rows, s.normals, s.offsets, s.nuisance, kBits, m2);
+    return matched_score(ev, key, f.nonce, message, usable);
+  };
+  const MatchedScore leak = surface_score(suspect, f.key, f.message);
+  std::printf("  remeshed 2 %%: %d vertices, matched T %.1f, -log10 p %.1f\n", suspect.num_vertices(),
+              leak.statistic, leak.neg_log10_p);
+  EXPECT_GT(leak.neg_log10_p, 15);
+  EXPECT_EQ(leak.message, f.message);
+  // A shift and a slight rotation the alignment leaves: the nuisance terms take it, not the mark.
+  Mesh moved = suspect;
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(2e-3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  moved.points = (moved.points * turn.transpose()).rowwise() + Eigen::RowVector3d(2e-3, -1e-3, 1e-3);
+  const SurfaceOffsets off = surface_offsets(*f.context, moved, Similarity());
+  const MatchedScore shifted = matched_score(
+      surface_evidence(f.basis, f.control.points, off.rows, off.normals, off.offsets, off.nuisance, kBits, m2),
+      f.key, f.nonce, f.message, usable);
+  const MatchedScore shifted_bare = matched_score(
+      surface_evidence(f.basis, f.control.points, off.rows, off.normals, off.offsets, Eigen::MatrixXd(), kBits, m2),
+      f.key, f.nonce, f.message, usable);
+  std::printf("  shifted, unaligned: -log10 p %.1f with the nuisance terms, %.1f without\n", shifted.neg_log10_p,
+              shifted_bare.neg_log10_p);
+  EXPECT_GT(shifted.neg_log10_p, 0.7 * leak.neg_log10_p);
+  EXPECT_LT(shifted_bare.neg_log10_p, shifted.neg_log10_p);
+  // Innocents: the unmarked surface remeshed alike, and the leak under another key.
+  Key other = f.key;
+  other[0] ^= 1;
+  const MatchedScore unmarked = surface_score(clean, f.key, f.message);
+  const MatchedScore wrong_key = surface_score(suspect, other, f.message);
+  std::printf("  innocents: unmarked -log10 p %.2f, other key %.2f\n", unmarked.neg_log10_p, wrong_key.neg_log10_p);
+  EXPECT_LT(unmarked.neg_log10_p, 3);
+  EXPECT_LT(wrong_key.neg_log10_p, 3);
 }

@@ -113,8 +113,16 @@ CopyStatistics copy_statistics(const SpectralBasis& basis, const Points& origina
   return s;
 }
 
+CoefficientEvidence suspect_evidence(const SpectralBasis& basis, const Points& original, const Points& registered,
+                                     const SurfaceOffsets* surface, int message_bits, const EmbedParams& params) {
+  if (surface && !surface->empty())
+    return surface_evidence(basis, original, surface->rows, surface->normals, surface->offsets, surface->nuisance,
+                            message_bits, params);
+  return coefficient_evidence(basis, original, registered, message_bits, params);
+}
+
 std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,
-                                    const std::vector<CopyCandidate>& copies) {
+                                    const std::vector<CopyCandidate>& copies, const SurfaceOffsets* surface) {
   std::vector<CopyScore> scores;
   // The matched score's evidence depends on the suspect and the copies' settings, not on keys.
   CoefficientEvidence evidence;
@@ -124,8 +132,8 @@ std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& re
         evidence_for->params.method != c.settings.params.method ||
         evidence_for->params.strength != c.settings.params.strength ||
         evidence_for->params.threshold != c.settings.params.threshold) {
-      evidence = coefficient_evidence(asset.basis, asset.control.points, registered, c.settings.message_bits,
-                                      c.settings.params);
+      evidence = suspect_evidence(asset.basis, asset.control.points, registered, surface, c.settings.message_bits,
+                                  c.settings.params);
       evidence_for = &c.settings;
     }
     const std::vector<bool> expected = payload_to_bits(c.payload, c.settings.message_bits);

@@ -19,8 +19,10 @@
 
 #include "jobs/protect.h"
 #include "registration/resynchronize.h"
+#include "registration/surface_offsets.h"
 #include "watermark/matched_score.h"
 #include "watermark/null_calibration.h"
+#include "watermark/surface_evidence.h"
 
 namespace mm::jobs {
 
@@ -112,10 +114,17 @@ CopyStatistics copy_statistics(const SpectralBasis& basis, const Points& origina
                                const CoefficientEvidence& evidence, const Key& key, const Nonce& nonce,
                                const EmbedParams& params, const std::vector<bool>& expected);
 
+// The matched score's evidence of a suspect: read on its surface (watermark/surface_evidence.h)
+// when `surface` holds offsets (a surface-fit suspect), else from the registered control points
+// (coefficient_evidence).
+CoefficientEvidence suspect_evidence(const SpectralBasis& basis, const Points& original, const Points& registered,
+                                     const SurfaceOffsets* surface, int message_bits, const EmbedParams& params);
+
 // Each copy's score of a suspect resynchronised to asset.control (resynchronize(...).points),
 // uncorrected (corrected_p = p_value), in input order.
 std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,
-                                    const std::vector<CopyCandidate>& copies);
+                                    const std::vector<CopyCandidate>& copies,
+                                    const SurfaceOffsets* surface = nullptr);
 // Bonferroni: min(1, p x copies tried).
 double corrected_p(double p, int copies_tried);
 // The better of two scores for the verdict: the smaller corrected p, then the larger correlation.

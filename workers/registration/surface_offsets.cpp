@@ -1,0 +1,60 @@
+#include "registration/surface_offsets.h"
+
+#include "registration/resync_context_impl.h"
+
+namespace mm {
+
+SurfaceOffsets surface_offsets(const ResyncContext& context, const Mesh& suspect, const Similarity& to_control_frame,
+                               int max_samples, double max_distance) {
+  using registration_detail::strided;
+  using registration_detail::Trip;
+  const ResyncContext::Impl& ctx = context.impl();
+  const FitSurface& fit = ctx.fit();
+  const LevelData& level = ctx.level(ctx.fit_level);
+  const SparseOperator& S = level.op.S;
+  const Points moved = to_control_frame.apply(strided(suspect.points, max_samples));
+  const double max_d = max_distance * ctx.diagonal;
+
+  std::vector<Trip> t;
+  std::vector<Eigen::Vector3d> normals;
+  std::vector<double> offsets;
+  std::vector<Eigen::Vector3d> points;
+  for (Eigen::Index k = 0; k < moved.rows(); ++k) {
+    const Eigen::Vector3d q = moved.row(k).transpose();
+    if (!q.allFinite()) continue;
+    const TriangleHit h = fit.tree->closest(q);
+    if (!(h.distance <= max_d)) continue;
+    const auto& f = fit.tris[static_cast<std::size_t>(h.triangle)];
+    const Eigen::Vector3d p0 = level.points.row(f[0]), p1 = level.points.row(f[1]), p2 = level.points.row(f[2]);
+    const Eigen::Vector3d normal = (p1 - p0).cross(p2 - p0).normalized();
+    if (!normal.allFinite()) continue;
+    const int row = static_cast<int>(offsets.size());
+    for (int c = 0; c < 3; ++c)
+      for (SparseOperator::InnerIterator e(S, f[c]); e; ++e)
+        t.emplace_back(row, static_cast<int>(e.col()), h.barycentric[c] * e.value());
+    normals.push_back(normal);
+    offsets.push_back((q - h.point).dot(normal));
+    points.push_back(h.point);
+  }
+  SurfaceOffsets out;
+  const int m = static_cast<int>(offsets.size());
+  out.rows.resize(m, ctx.control.num_vertices());
+  out.rows.setFromTriplets(t.begin(), t.end());  // duplicates (shared control points) are summed
+  out.normals.resize(m, 3);
+  for (int i = 0; i < m; ++i) out.normals.row(i) = normals[static_cast<std::size_t>(i)].transpose();
+  out.offsets = Eigen::Map<const Eigen::VectorXd>(offsets.data(), m);
+  out.nuisance.resize(m, 8);
+  // About the control's centroid, so the rotation and scale columns are not nearly the others.
+  const Eigen::Vector3d centre = ctx.control.points.colwise().mean().transpose();
+  for (int i = 0; i < m; ++i) {
+    const Eigen::Vector3d& nv = normals[static_cast<std::size_t>(i)];
+    const Eigen::Vector3d p = points[static_cast<std::size_t>(i)] - centre;
+    out.nuisance(i, 0) = 1;
+    out.nuisance.block<1, 3>(i, 1) = nv.transpose();
+    out.nuisance.block<1, 3>(i, 4) = p.cross(nv).transpose();
+    out.nuisance(i, 7) = nv.dot(p);
+  }
+  return out;
+}
+
+}  // namespace mm

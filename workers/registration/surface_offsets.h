@@ -1,0 +1,34 @@
+// Signed offsets of a suspect's vertices from the original refined surface, along its normals:
+// what a surface test of the mark reads (watermark/surface_evidence.h) without recovering the
+// control points. A remeshed, simplified or re-extracted copy keeps its vertices on the marked
+// surface, so each offset is the mark's normal component there plus the attack's error; vertices
+// rather than area samples, because a coarse remesh's faces cut chords through curved regions.
+#pragma once
+#include <Eigen/Sparse>
+
+#include "meshio/mesh.h"
+#include "registration/align_similarity.h"
+#include "registration/resynchronize.h"
+
+namespace mm {
+
+struct SurfaceOffsets {
+  // m x n: sample i's closest point on the original surface as a combination of control points
+  // (barycentric weights times the refinement operator's rows), so a control displacement D moves
+  // it by rows * D.
+  Eigen::SparseMatrix<double> rows;
+  Points normals;           // m x 3: unit normal of the original triangle under sample i
+  Eigen::VectorXd offsets;  // m: (suspect point - closest point) . normal, in the control's frame
+  // m x 8: the offsets a small error of the alignment makes, which are not the mark's: a constant
+  // (an inflation), n (translation), p x n (rotation), n . p (scale), p the closest point.
+  Eigen::MatrixXd nuisance;
+  bool empty() const { return offsets.size() == 0; }
+};
+
+// Suspect vertices (evenly strided, at most max_samples) mapped by to_control_frame and paired
+// with their closest points on the context's fit surface; those farther than max_distance x the
+// diagonal are left out (where the suspect is not the part).
+SurfaceOffsets surface_offsets(const ResyncContext& context, const Mesh& suspect, const Similarity& to_control_frame,
+                               int max_samples = 8000, double max_distance = 0.02);
+
+}  // namespace mm
