@@ -23,6 +23,11 @@ namespace mm::registration_detail {
 constexpr double kCoverage = 4;
 // A suspect-to-original alignment replaces the two-way one when its RMS is below this share.
 constexpr double kPartialGain = 0.5;
+// The asset's own frame is kept while it explains the suspect within this factor of the best
+// pose: copies are issued there, and a part symmetric about an axis fits as well turned over
+// (abc5, abc7, abc9 remeshed settled on poses turned by 1.2-3.1 rad, and the mark was read in
+// the wrong places), while a similarity also takes up some of the mark's lowest frequencies.
+constexpr double kFrameTolerance = 2;
 
 Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, const ResyncOptions& o) {
   Resynchronized r;
@@ -43,15 +48,18 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
     r.to_control_frame = align_similarity(moving, moving, fixed, closest, o.icp).transform;
     // A crop covers part of the original: pairing the original's samples with it (above) drags
     // the similarity towards covering everything. Suspect-to-original pairs alone, from the
-    // asset's frame (where an issued copy lies) and from the pose above, do not; kept when they
-    // explain the suspect far better.
+    // asset's frame (where an issued copy lies) and from the pose above, do not; the asset's
+    // frame is kept when it explains the suspect nearly as well as the pose, the refined pose
+    // when it explains it far better.
     const double full = icp_similarity(moving, closest, Points(), r.to_control_frame, o.icp, 0).rms;
     IcpOptions rigid = o.icp;
     rigid.keep_scale = true;
-    IcpResult partial = icp_similarity(moving, closest, Points(), Similarity(), rigid);
+    const IcpResult in_frame = icp_similarity(moving, closest, Points(), Similarity(), rigid);
     const IcpResult refined = icp_similarity(moving, closest, Points(), r.to_control_frame, rigid);
-    if (refined.rms < partial.rms) partial = refined;
-    if (partial.rms < kPartialGain * full) r.to_control_frame = partial.transform;
+    if (in_frame.rms <= kFrameTolerance * full)
+      r.to_control_frame = in_frame.transform;
+    else if (refined.rms < kPartialGain * full)
+      r.to_control_frame = refined.transform;
   }
   const Similarity& T = r.to_control_frame;
   const Similarity Tinv = T.inverse();
