@@ -11,7 +11,9 @@ namespace {
 constexpr double kRidgeFactor = 10;  // ridge = this x the residual variance (unit prior on beta)
 constexpr int kRefits = 3;
 constexpr int kMaxIterations = 300;  // conjugate gradient, per fit
-constexpr double kTolerance = 1e-8;  // relative residual of the normal equations
+// Relative residual of the normal equations: the statistic moves by under 1 % between 1e-4 and
+// 1e-8 on the shared parts, at a third of the iterations.
+constexpr double kTolerance = 1e-4;  // relative residual of the normal equations
 
 }  // namespace
 
