@@ -343,11 +343,10 @@ void add_extract_command(CLI::App& app) {
     // Scored as the daemon scores a copy (jobs::copy_statistics): the sign count with its
     // calibrated null, the matched score, the verdict on the smaller p of the two, doubled.
     const jobs::CopyStatistics st = jobs::copy_statistics(
-        ctl.basis, ctl.normalized.points, rs.points,
+        ctl.basis,
         jobs::suspect_evidence(ctl.basis, ctl.normalized.points, rs.points, surface.empty() ? nullptr : &surface,
                                rec.message_bits, rec.params),
-        key,
-        rec.nonce, rec.params, expected);
+        key, rec.nonce, rec.params, expected);
     const Extraction& ex = st.sign;
     const NullCalibration& cal = st.calibration;
     const jobs::MarkP& sign_p = st.sign_p;

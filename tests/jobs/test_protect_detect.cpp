@@ -423,6 +423,40 @@ TEST(NullCalibration, SpreadMatchesTheBinomialModelForIndependentAndCorrelatedSi
   EXPECT_EQ(calibrate_null(std::vector<std::int8_t>(m, 0), l, 0.0).p, 1.0);
 }
 
+// The message-known calibration counts agreements a word at a time; each null correlation must be
+// the entry-by-entry count of the votes against the message, as extract() defines it.
+TEST(NullCalibration, PackedCountsMatchTheVotesEntryByEntry) {
+  const int l = 32, m = 1003;  // not a multiple of 64
+  std::mt19937 g(11);
+  std::vector<std::int8_t> signs(m);
+  for (auto& s : signs) s = static_cast<std::int8_t>(static_cast<int>(g() % 3) - 1);  // -1, 0, +1
+  std::vector<bool> message(l);
+  for (int i = 0; i < l; ++i) message[static_cast<std::size_t>(i)] = (g() & 1) != 0;
+  const NullSequences nulls = make_null_sequences(signs.size(), 64);
+  double sum = 0, sum2 = 0;
+  long compared = 0;
+  for (auto s : signs) compared += s != 0;
+  for (const auto& z : nulls.bits) {
+    long agreements = 0;
+    for (std::size_t j = 0; j < signs.size(); ++j) {
+      if (signs[j] == 0) continue;
+      const int vote = -signs[j] * (((z[j / 64] >> (j % 64)) & 1) ? 1 : -1);
+      agreements += (vote > 0) == bool(message[j % l]);
+    }
+    const double c = double(2 * agreements - compared) / double(compared);
+    sum += c;
+    sum2 += c * c;
+  }
+  const double mean = sum / 64, sd = std::sqrt((sum2 - sum * mean) / 63);
+  const NullCalibration packed = calibrate_null(signs, l, 0.2, &message, nulls);
+  EXPECT_EQ(packed.mean, mean);
+  EXPECT_EQ(packed.sd, sd);
+  const NullCalibration made_here = calibrate_null(signs, l, 0.2, &message, 64);
+  EXPECT_EQ(made_here.p, packed.p);
+  EXPECT_THROW(calibrate_null(signs, l, 0.2, &message, make_null_sequences(signs.size() - 1, 64)),
+               std::invalid_argument);
+}
+
 TEST(NullCalibration, NormalTailMatchesClosedFormsAndSurvivesUnderflow) {
   double p = 0, q = 0;
   normal_upper_tail(0, &p, &q);

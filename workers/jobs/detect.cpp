@@ -99,33 +99,37 @@ bool better_copy(const CopyScore& a, const CopyScore& b) {
   return a.correlation > b.correlation;
 }
 
-CopyStatistics copy_statistics(const SpectralBasis& basis, const Points& original, const Points& registered,
-                               const CoefficientEvidence& evidence, const Key& key, const Nonce& nonce,
-                               const EmbedParams& params, const std::vector<bool>& expected) {
+CopyStatistics copy_statistics(const SpectralBasis& basis, const SuspectEvidence& evidence, const Key& key,
+                               const Nonce& nonce, const EmbedParams& params, const std::vector<bool>& expected) {
   const int bits = static_cast<int>(expected.size());
   CopyStatistics s;
-  s.sign = extract(basis, original, registered, bits, key, nonce, params, &expected);
-  s.calibration = calibrate_null(s.sign.signs, bits, s.sign.correlation, &expected);
+  s.sign = extract(basis, evidence.spectral, bits, key, nonce, params, &expected);
+  s.calibration = calibrate_null(s.sign.signs, bits, s.sign.correlation, &expected, evidence.nulls);
   s.sign_p = verdict_p(s.sign, s.calibration);
-  s.matched = matched_score(evidence, key, nonce, expected, usable_coefficients(basis));
+  s.matched = matched_score(evidence.matched, key, nonce, expected, usable_coefficients(basis));
   s.p = combined_p(s.sign_p, s.matched);
   s.message = s.matched.neg_log10_p > s.sign_p.neg_log10_p ? s.matched.message : s.sign.message;
   return s;
 }
 
-CoefficientEvidence suspect_evidence(const SpectralBasis& basis, const Points& original, const Points& registered,
-                                     const SurfaceOffsets* surface, int message_bits, const EmbedParams& params) {
-  if (surface && !surface->empty())
-    return surface_evidence(basis, original, surface->rows, surface->normals, surface->offsets, surface->nuisance,
-                            message_bits, params);
-  return coefficient_evidence(basis, original, registered, message_bits, params);
+SuspectEvidence suspect_evidence(const SpectralBasis& basis, const Points& original, const Points& registered,
+                                 const SurfaceOffsets* surface, int message_bits, const EmbedParams& params) {
+  SuspectEvidence e;
+  e.spectral = spectral_displacement(basis, original, registered);
+  e.matched = surface && !surface->empty()
+                  ? surface_evidence(basis, original, surface->rows, surface->normals, surface->offsets,
+                                     surface->nuisance, message_bits, params)
+                  : coefficient_evidence(basis, original, registered, message_bits, params);
+  // The sign count runs over the sequence's r * l entries, as the matched evidence does.
+  e.nulls = make_null_sequences(e.matched.u.size());
+  return e;
 }
 
 std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,
                                     const std::vector<CopyCandidate>& copies, const SurfaceOffsets* surface) {
   std::vector<CopyScore> scores;
-  // The matched score's evidence depends on the suspect and the copies' settings, not on keys.
-  CoefficientEvidence evidence;
+  // The evidence depends on the suspect and the copies' settings, not on keys.
+  SuspectEvidence evidence;
   const WatermarkSettings* evidence_for = nullptr;
   for (const auto& c : copies) {
     if (!evidence_for || evidence_for->message_bits != c.settings.message_bits ||
@@ -137,8 +141,7 @@ std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& re
       evidence_for = &c.settings;
     }
     const std::vector<bool> expected = payload_to_bits(c.payload, c.settings.message_bits);
-    const CopyStatistics st = copy_statistics(asset.basis, asset.control.points, registered, evidence, c.key,
-                                              c.nonce, c.settings.params, expected);
+    const CopyStatistics st = copy_statistics(asset.basis, evidence, c.key, c.nonce, c.settings.params, expected);
     CopyScore s;
     s.copy_id = c.copy_id;
     s.correlation = st.sign.correlation;

@@ -110,15 +110,21 @@ struct CopyStatistics {
   MarkP p;                    // combined_p(sign_p, matched)
   std::vector<bool> message;  // decoded by the stronger statistic
 };
-CopyStatistics copy_statistics(const SpectralBasis& basis, const Points& original, const Points& registered,
-                               const CoefficientEvidence& evidence, const Key& key, const Nonce& nonce,
-                               const EmbedParams& params, const std::vector<bool>& expected);
+// What scoring takes from a suspect that no copy's key changes, made once for all the copies of
+// a polyhedron with the same settings: the sign count's spectral displacement, the calibration's
+// null sequences, and the matched score's evidence, read on the suspect's surface
+// (watermark/surface_evidence.h) when `surface` holds offsets (a surface-fit suspect), else from
+// the registered control points (coefficient_evidence).
+struct SuspectEvidence {
+  SpectralDisplacement spectral;
+  NullSequences nulls;
+  CoefficientEvidence matched;
+};
+SuspectEvidence suspect_evidence(const SpectralBasis& basis, const Points& original, const Points& registered,
+                                 const SurfaceOffsets* surface, int message_bits, const EmbedParams& params);
 
-// The matched score's evidence of a suspect: read on its surface (watermark/surface_evidence.h)
-// when `surface` holds offsets (a surface-fit suspect), else from the registered control points
-// (coefficient_evidence).
-CoefficientEvidence suspect_evidence(const SpectralBasis& basis, const Points& original, const Points& registered,
-                                     const SurfaceOffsets* surface, int message_bits, const EmbedParams& params);
+CopyStatistics copy_statistics(const SpectralBasis& basis, const SuspectEvidence& evidence, const Key& key,
+                               const Nonce& nonce, const EmbedParams& params, const std::vector<bool>& expected);
 
 // Each copy's score of a suspect resynchronised to asset.control (resynchronize(...).points),
 // uncorrected (corrected_p = p_value), in input order.

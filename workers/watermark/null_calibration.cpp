@@ -47,10 +47,33 @@ void normal_upper_tail(double z, double* p, double* neg_log10_p) {
   *neg_log10_p = -log_q / std::log(10.0);
 }
 
+NullSequences make_null_sequences(std::size_t length, int sequences) {
+  if (sequences < 2) throw std::invalid_argument("calibrate_null: at least 2 null sequences");
+  NullSequences out;
+  out.length = length;
+  const Key key = null_key();
+  for (int k = 0; k < sequences; ++k) {
+    const std::vector<std::uint8_t> z = key_stream_bits(key, null_nonce(k), length);
+    std::vector<std::uint64_t> words((length + 63) / 64, 0);
+    for (std::size_t j = 0; j < length; ++j)
+      if (z[j]) words[j / 64] |= std::uint64_t{1} << (j % 64);
+    out.bits.push_back(std::move(words));
+  }
+  return out;
+}
+
 NullCalibration calibrate_null(const std::vector<std::int8_t>& signs, int message_bits, double correlation,
                                const std::vector<bool>* expected, int sequences) {
-  if (message_bits <= 0) throw std::invalid_argument("calibrate_null: message_bits must be positive");
   if (sequences < 2) throw std::invalid_argument("calibrate_null: at least 2 null sequences");
+  return calibrate_null(signs, message_bits, correlation, expected, make_null_sequences(signs.size(), sequences));
+}
+
+NullCalibration calibrate_null(const std::vector<std::int8_t>& signs, int message_bits, double correlation,
+                               const std::vector<bool>* expected, const NullSequences& nulls) {
+  if (message_bits <= 0) throw std::invalid_argument("calibrate_null: message_bits must be positive");
+  const int sequences = static_cast<int>(nulls.bits.size());
+  if (sequences < 2) throw std::invalid_argument("calibrate_null: at least 2 null sequences");
+  if (nulls.length != signs.size()) throw std::invalid_argument("calibrate_null: null sequences of another length");
   if (expected && static_cast<int>(expected->size()) != message_bits)
     throw std::invalid_argument("calibrate_null: expected message length differs from message_bits");
   NullCalibration out;
@@ -59,25 +82,37 @@ NullCalibration calibrate_null(const std::vector<std::int8_t>& signs, int messag
   for (auto s : signs) compared += s != 0;
   if (compared == 0) return out;
 
-  const Key key = null_key();
+  const std::size_t words = (signs.size() + 63) / 64;
+  // With the message known, entry j agrees when its null bit equals (B''_j > 0) xor the expected
+  // bit (its vote -B''_j z_j is positive exactly for a 1 bit): a popcount per word.
+  std::vector<std::uint64_t> used(words, 0), target(words, 0);
+  if (expected)
+    for (std::size_t j = 0; j < signs.size(); ++j) {
+      if (signs[j] == 0) continue;
+      const std::uint64_t bit = std::uint64_t{1} << (j % 64);
+      used[j / 64] |= bit;
+      if ((signs[j] > 0) != bool((*expected)[j % static_cast<std::size_t>(message_bits)])) target[j / 64] |= bit;
+    }
   std::vector<int> votes(static_cast<std::size_t>(message_bits));
   std::vector<int> copies(static_cast<std::size_t>(message_bits));
   double sum = 0, sum2 = 0;
   for (int k = 0; k < sequences; ++k) {
-    const std::vector<std::uint8_t> z = key_stream_bits(key, null_nonce(k), signs.size());
-    std::fill(votes.begin(), votes.end(), 0);
-    std::fill(copies.begin(), copies.end(), 0);
+    const std::vector<std::uint64_t>& z = nulls.bits[static_cast<std::size_t>(k)];
     long agreements = 0;
-    for (std::size_t j = 0; j < signs.size(); ++j) {
-      if (signs[j] == 0) continue;
-      const int vote = -signs[j] * (z[j] ? 1 : -1);
-      const std::size_t bit = j % static_cast<std::size_t>(message_bits);
-      votes[bit] += vote;
-      ++copies[bit];
-      if (expected) agreements += (vote > 0) == bool((*expected)[bit]);
-    }
-    if (!expected)
+    if (expected) {
+      for (std::size_t w = 0; w < words; ++w) agreements += __builtin_popcountll(used[w] & ~(z[w] ^ target[w]));
+    } else {
+      std::fill(votes.begin(), votes.end(), 0);
+      std::fill(copies.begin(), copies.end(), 0);
+      for (std::size_t j = 0; j < signs.size(); ++j) {
+        if (signs[j] == 0) continue;
+        const bool one = (z[j / 64] >> (j % 64)) & 1;
+        const std::size_t bit = j % static_cast<std::size_t>(message_bits);
+        votes[bit] += -signs[j] * (one ? 1 : -1);
+        ++copies[bit];
+      }
       for (int i = 0; i < message_bits; ++i) agreements += (copies[i] + std::abs(votes[i])) / 2;
+    }
     const double c = double(2 * agreements - compared) / double(compared);
     sum += c;
     sum2 += c * c;

@@ -29,6 +29,19 @@ struct NullCalibration {
 NullCalibration calibrate_null(const std::vector<std::int8_t>& signs, int message_bits, double correlation,
                                const std::vector<bool>* expected = nullptr, int sequences = kNullSequences);
 
+// The null sequences themselves, for statistics over `length` coefficients: generating them is
+// most of a calibration's cost and they are the same for every copy of a polyhedron, so a caller
+// scoring many copies makes them once. Bits packed 64 to a word, entry j in word j / 64.
+struct NullSequences {
+  std::size_t length = 0;
+  std::vector<std::vector<std::uint64_t>> bits;  // one per sequence
+};
+NullSequences make_null_sequences(std::size_t length, int sequences = kNullSequences);
+// As above, over prepared sequences (signs.size() must equal nulls.length, else
+// std::invalid_argument); the same numbers, bit for bit.
+NullCalibration calibrate_null(const std::vector<std::int8_t>& signs, int message_bits, double correlation,
+                               const std::vector<bool>* expected, const NullSequences& nulls);
+
 // P[N(0,1) > z] with -log10 of it; accurate far beyond where the double p underflows.
 void normal_upper_tail(double z, double* p, double* neg_log10_p);
 

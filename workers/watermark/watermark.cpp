@@ -76,10 +76,7 @@ Points embed(const SpectralBasis& basis, const Points& original, const std::vect
   return original + from_spectral(basis, delta);
 }
 
-Extraction extract(const SpectralBasis& basis, const Points& original, const Points& suspect,
-                   int message_bits, const Key& key, const Nonce& nonce, const EmbedParams& params,
-                   const std::vector<bool>* expected) {
-  check_params(params);
+SpectralDisplacement spectral_displacement(const SpectralBasis& basis, const Points& original, const Points& suspect) {
   const int n = basis.num_vertices();
   if (original.rows() != n)
     throw std::invalid_argument("extract: " + std::to_string(original.rows()) +
@@ -90,6 +87,24 @@ Extraction extract(const SpectralBasis& basis, const Points& original, const Poi
                                          " (resynchronise it first)");
   if (!suspect.allFinite()) throw InputError("suspect mesh", "has NaN or infinite coordinates");
   if (!original.allFinite()) throw std::invalid_argument("extract: non-finite original coordinates");
+  SpectralDisplacement out;
+  out.original = to_spectral(basis, original);
+  out.displacement = basis.W.transpose() * (suspect - original);  // without cancellation
+  return out;
+}
+
+Extraction extract(const SpectralBasis& basis, const Points& original, const Points& suspect,
+                   int message_bits, const Key& key, const Nonce& nonce, const EmbedParams& params,
+                   const std::vector<bool>* expected) {
+  check_params(params);
+  return extract(basis, spectral_displacement(basis, original, suspect), message_bits, key, nonce, params, expected);
+}
+
+Extraction extract(const SpectralBasis& basis, const SpectralDisplacement& spectral, int message_bits, const Key& key,
+                   const Nonce& nonce, const EmbedParams& params, const std::vector<bool>* expected) {
+  check_params(params);
+  if (spectral.original.rows() != basis.num_vertices() || spectral.displacement.rows() != basis.num_vertices())
+    throw std::invalid_argument("extract: spectral coordinates of another vertex count");
   if (message_bits <= 0) throw std::invalid_argument("extract: message_bits must be positive");
   if (expected && static_cast<int>(expected->size()) != message_bits)
     throw std::invalid_argument("extract: expected message length differs from message_bits");
@@ -97,8 +112,8 @@ Extraction extract(const SpectralBasis& basis, const Points& original, const Poi
   // Sequence with the message all zeros: its entries are the key stream mapped to +-1.
   const MarkSequence stream =
       make_sequence(std::vector<bool>(message_bits, false), usable_coefficients(basis), key, nonce);
-  const Points cs = to_spectral(basis, original);
-  const Points d = basis.W.transpose() * (suspect - original);  // Cs'' - Cs, without cancellation
+  const Points& cs = spectral.original;
+  const Points& d = spectral.displacement;
   const double floor = kRoundingFloor * cs.cwiseAbs().maxCoeff();
 
   Extraction out;

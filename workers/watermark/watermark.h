@@ -76,4 +76,16 @@ Extraction extract(const SpectralBasis& basis, const Points& original, const Poi
                    int message_bits, const Key& key, const Nonce& nonce, const EmbedParams& params,
                    const std::vector<bool>* expected = nullptr);
 
+// What extract() compares, which depends on the suspect and not on the key: the original's
+// spectral coefficients and the suspect's displacement from them (two dense n x n products,
+// most of an extraction's cost). Made once, it serves every copy of the polyhedron. Throws
+// like extract() for a suspect of the wrong vertex count or non-finite coordinates.
+struct SpectralDisplacement {
+  Points original;      // Cs, n x 3
+  Points displacement;  // Cs'' - Cs = W^T (suspect - original), n x 3
+};
+SpectralDisplacement spectral_displacement(const SpectralBasis& basis, const Points& original, const Points& suspect);
+Extraction extract(const SpectralBasis& basis, const SpectralDisplacement& spectral, int message_bits, const Key& key,
+                   const Nonce& nonce, const EmbedParams& params, const std::vector<bool>* expected = nullptr);
+
 }  // namespace mm
