@@ -27,7 +27,7 @@ if [ ! -f "$C/ready" ]; then
     printf "\\x$2" >"$C/mesh/$(basename "$1").$2" && head -c 200000 "$1" >>"$C/mesh/$(basename "$1").$2"
   }
   T=$(mktemp -d)
-  "$MM" sample "$T/part.off" >/dev/null
+  "$MM" sample chamfered_block "$T/part.off" >/dev/null
   "$MM" compress --fast "$T/part.off" "$T/part.mmc" >/dev/null
   "$MM" decompress "$T/part.mmc" "$T/part.stl" >/dev/null
   "$MM" decompress "$T/part.mmc" "$T/part.obj" >/dev/null
