@@ -344,8 +344,8 @@ void add_extract_command(CLI::App& app) {
     // calibrated null, the matched score, the verdict on the smaller p of the two, doubled.
     const jobs::CopyStatistics st = jobs::copy_statistics(
         ctl.basis,
-        jobs::suspect_evidence(ctl.basis, ctl.normalized.points, rs.points, surface.empty() ? nullptr : &surface,
-                               rec.message_bits, rec.params),
+        jobs::suspect_evidence(ctl.basis, ctl.normalized.points, rs.points, &surface, rec.message_bits,
+                               rec.params),
         key, rec.nonce, rec.params, expected);
     const Extraction& ex = st.sign;
     const NullCalibration& cal = st.calibration;

@@ -52,10 +52,8 @@ CoefficientEvidence coefficient_evidence(const SpectralBasis& basis, const Point
     std::vector<double> residual, move;
     double rr = 0, gg = 0, g4 = 0, r2g2 = 0;
     for (int j = start; j < end; ++j) {
-      const double c = at(cs, j);
-      const bool add = params.method == Method::Additive && std::abs(c) < params.threshold;
       const double r = at(d, j) - (biased ? gain * at(cs, j) : 0.0);
-      const double g = j < len ? (add ? params.threshold * params.strength : std::abs(c) * params.strength) : 0.0;
+      const double g = j < len ? coefficient_move(params, at(cs, j)).size : 0.0;
       residual.push_back(r);
       move.push_back(g);
       rr += r * r;
@@ -79,10 +77,8 @@ CoefficientEvidence coefficient_evidence(const SpectralBasis& basis, const Point
     noise = std::max(noise, kNoiseFloor * mg);
     const double h = std::sqrt(h2);
     for (int j = start; j < std::min(end, len); ++j) {
-      const double c = at(cs, j);
-      const bool add = params.method == Method::Additive && std::abs(c) < params.threshold;
       const double g = move[static_cast<std::size_t>(j - start)];
-      const double direction = add || c > 0 ? 1 : -1;
+      const double direction = coefficient_move(params, at(cs, j)).direction;
       // The weight that maximises T's expectation under the mark: h g / (h^2 g^2 + noise).
       const double denominator = h2 * g * g + noise;
       ev.u[static_cast<std::size_t>(j)] =

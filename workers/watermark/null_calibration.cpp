@@ -64,7 +64,6 @@ NullSequences make_null_sequences(std::size_t length, int sequences) {
 
 NullCalibration calibrate_null(const std::vector<std::int8_t>& signs, int message_bits, double correlation,
                                const std::vector<bool>* expected, int sequences) {
-  if (sequences < 2) throw std::invalid_argument("calibrate_null: at least 2 null sequences");
   return calibrate_null(signs, message_bits, correlation, expected, make_null_sequences(signs.size(), sequences));
 }
 

@@ -13,7 +13,7 @@ constexpr int kRefits = 3;
 constexpr int kMaxIterations = 300;  // conjugate gradient, per fit
 // Relative residual of the normal equations: the statistic moves by under 1 % between 1e-4 and
 // 1e-8 on the shared parts, at a third of the iterations.
-constexpr double kTolerance = 1e-4;  // relative residual of the normal equations
+constexpr double kTolerance = 1e-4;
 
 }  // namespace
 
@@ -48,10 +48,9 @@ CoefficientEvidence surface_evidence(const SpectralBasis& basis, const Points& o
   const Points cs = to_spectral(basis, original);
   Eigen::MatrixXd G = Eigen::MatrixXd::Zero(K, 3), dir = Eigen::MatrixXd::Zero(K, 3);
   for (int j = 0; j < fitted; ++j) {
-    const double c = cs(basis.num_components + j / 3, j % 3);
-    const bool add = params.method == Method::Additive && std::abs(c) < params.threshold;
-    G(j / 3, j % 3) = add ? params.threshold * params.strength : std::abs(c) * params.strength;
-    dir(j / 3, j % 3) = add || c > 0 ? 1 : -1;
+    const CoefficientMove mv = coefficient_move(params, cs(basis.num_components + j / 3, j % 3));
+    G(j / 3, j % 3) = mv.size;
+    dir(j / 3, j % 3) = mv.direction;
   }
   const Eigen::MatrixXd P = rows * basis.W.middleCols(basis.num_components, K);  // m x K
 

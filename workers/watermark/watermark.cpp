@@ -35,6 +35,11 @@ double coefficient(const SpectralBasis& basis, const Points& cs, int j) {
 
 }  // namespace
 
+CoefficientMove coefficient_move(const EmbedParams& params, double c) {
+  const bool add = additive(params, c);
+  return {add ? params.threshold * params.strength : std::abs(c) * params.strength, add || c > 0 ? 1.0 : -1.0};
+}
+
 int usable_coefficients(const SpectralBasis& basis) {
   return 3 * (basis.num_vertices() - basis.num_components);
 }
@@ -126,19 +131,18 @@ Extraction extract(const SpectralBasis& basis, const SpectralDisplacement& spect
   // yet decoded one bit wrong when ties read as 0 (docs/watermark.md, "Extraction (paper IV.D)").
   std::vector<double> soft(message_bits, 0.0);
   for (int j = 0; j < static_cast<int>(stream.b.size()); ++j) {
-    const double c = coefficient(basis, cs, j);
-    const bool add = additive(params, c);
-    const double move = add ? params.threshold * params.strength : std::abs(c) * params.strength;
+    const CoefficientMove mv = coefficient_move(params, coefficient(basis, cs, j));
+    const double move = mv.size;
     const double dj = coefficient(basis, d, j);
     if (!(move > floor) || dj == 0) continue;
-    const int sign_b = (dj > 0 ? 1 : -1) * (add || c > 0 ? 1 : -1);  // B''_j
+    const int sign_b = (dj > 0 ? 1 : -1) * static_cast<int>(mv.direction);  // B''_j
     // `stream` is B for the all-zero message; a 1 bit inverts its copies (XOR in +-1 form), so
     // -B''_j stream_j is this copy's vote for message bit j mod l: +1 for 1, -1 for 0.
     out.signs[static_cast<std::size_t>(j)] = static_cast<std::int8_t>(sign_b);
     const int vote = -sign_b * stream.b[j];
     const int bit = j % message_bits;
     votes[bit] += vote;
-    soft[bit] -= dj * (add || c > 0 ? 1 : -1) / move * stream.b[j];
+    soft[bit] -= dj * mv.direction / move * stream.b[j];
     ++copies[bit];
     ++out.compared;
     if (expected) out.agreements += (vote > 0) == bool((*expected)[bit]);

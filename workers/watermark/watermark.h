@@ -27,6 +27,15 @@ struct EmbedParams {
   double threshold = 0.05;  // T (Method 2): coefficients with |Cs| < T are moved by T a b
 };
 
+// How embedding moves a coefficient of value c (eq. 8, 9) for a +1 sequence entry: by `size`, in
+// `direction` (+1 or -1); a -1 entry moves it the other way. The same for every copy of a
+// polyhedron: only the entry's sign is the key's.
+struct CoefficientMove {
+  double size = 0;
+  double direction = 1;
+};
+CoefficientMove coefficient_move(const EmbedParams& params, double c);
+
 // 3 (n - num_components): the coefficient values that can carry the mark (3n' in the docs).
 int usable_coefficients(const SpectralBasis& basis);
 
