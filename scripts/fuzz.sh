@@ -7,8 +7,12 @@
 # build-fuzz/findings/<target>/ and the script exits 1: copy it into
 # tests/fuzz/regressions/<target>/ with the fix, and ctest replays it from then on.
 # Usage: scripts/fuzz.sh [SECONDS]   (TARGETS="mesh stream config copy_record", JOBS)
+#        scripts/fuzz.sh --ci          CI's short run: a fixed seed and a fixed number of inputs a
+#                                      target (about 15 s each on one core), so a run is repeatable.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+CI_MODE=0
+if [ "${1:-}" = "--ci" ]; then CI_MODE=1; shift; fi
 SECONDS_EACH=${1:-30}
 B=${FUZZ_BUILD_DIR:-build-fuzz}
 JOBS=${JOBS:-$(nproc)}
@@ -51,12 +55,19 @@ for t in $TARGETS; do
   mkdir -p "$B/findings/$t" "$B/work/$t"
   cp -n tests/fuzz/regressions/$t/* "$B/work/$t/" 2>/dev/null || true
   # Each run grows its own work corpus from the seeds; -rss_limit_mb bounds what one input may allocate.
-  if ! "$B/tests/fuzz/fuzz_$t" "$B/work/$t" "$C/$t" -max_total_time="$SECONDS_EACH" -timeout=10 -rss_limit_mb=2048 \
+  if [ $CI_MODE = 1 ]; then
+    rm -rf "$B/work/$t" && mkdir -p "$B/work/$t" && cp tests/fuzz/regressions/$t/* "$B/work/$t/"
+    case $t in mesh) runs=10000 ;; *) runs=100000 ;; esac
+    limit=(-seed=1 -runs=$runs)
+  else
+    limit=(-max_total_time="$SECONDS_EACH")
+  fi
+  if ! "$B/tests/fuzz/fuzz_$t" "$B/work/$t" "$C/$t" "${limit[@]}" -timeout=10 -rss_limit_mb=2048 \
       -artifact_prefix="$B/findings/$t/" -print_final_stats=1 >"$B/findings/$t.log" 2>&1; then
     echo "fuzz $t: FINDING (see $B/findings/$t/ and $B/findings/$t.log)" >&2
     tail -30 "$B/findings/$t.log" >&2
     status=1
   fi
-  echo "fuzz $t: $(grep -m1 -o 'stat::number_of_executed_units: [0-9]*' "$B/findings/$t.log" | awk '{print $2}') executions in ${SECONDS_EACH} s"
+  echo "fuzz $t: $(grep -m1 -o 'stat::number_of_executed_units: [0-9]*' "$B/findings/$t.log" | awk '{print $2}') executions in $(grep -m1 -o 'Done [0-9]* runs in [0-9]* second' "$B/findings/$t.log" | awk '{print $5}') s"
 done
 exit $status
