@@ -64,6 +64,7 @@ json to_json(const store::Job& j) {
           {"priority", j.priority},
           {"attempt", j.attempt},
           {"max_attempts", j.max_attempts},
+          {"rescues", j.rescues},
           {"idempotency_key", j.idempotency_key},
           {"payload", parse_or_string(j.payload_json)},
           {"created_at", iso_time(j.created_at)},

@@ -1,6 +1,11 @@
 #include "store/sqlite_db.h"
 
+#include <sys/vfs.h>
+
+#include <atomic>
 #include <chrono>
+#include <cstdlib>
+#include <filesystem>
 #include <thread>
 
 namespace mm::store::sql {
@@ -10,7 +15,64 @@ namespace {
 }
 }  // namespace
 
+const char* network_filesystem_name(long f_type) {
+  switch (static_cast<unsigned long>(f_type) & 0xffffffffUL) {
+    case 0x6969: return "NFS";
+    case 0x517B: return "SMB";
+    case 0xFF534D42: return "CIFS";
+    case 0xFE534D42: return "SMB2";
+    case 0x00C36400: return "Ceph";
+    case 0x5346414F: return "AFS";
+    case 0x73757245: return "Coda";
+    case 0x564C: return "NCP";
+    case 0x0BD00BD0: return "Lustre";
+    case 0x47504653: return "GPFS";
+    case 0x01161970: return "GFS2";
+    case 0x7461636F: return "OCFS2";
+    default: return nullptr;
+  }
+}
+
+void require_local_filesystem(const std::string& db_path) {
+  namespace fs = std::filesystem;
+  fs::path dir = fs::absolute(fs::path(db_path)).parent_path();
+  struct statfs st {};
+  if (statfs(dir.c_str(), &st) != 0) return;  // the open that follows names the real problem
+  if (const char* name = network_filesystem_name(static_cast<long>(st.f_type)))
+    throw StoreError("cannot open database " + db_path + ": its folder is on a network file system (" + name +
+                     "); SQLite's write-ahead log needs shared memory on one machine, so the store must "
+                     "be on a local disk (docs/store.md)");
+}
+
+namespace {
+constexpr int kCheckpointPages = 1000;  // SQLite's own autocheckpoint threshold
+
+// Replaces SQLite's automatic checkpoint (see Db). Runs after a commit, its write lock released.
+int checkpoint_under_write_lock(void* self, sqlite3*, const char*, int pages) {
+  if (pages >= kCheckpointPages) static_cast<Db*>(self)->checkpoint();
+  return SQLITE_OK;
+}
+}  // namespace
+
+bool Db::checkpoint() {
+  if (!guard_) {
+    if (sqlite3_open_v2(path_.c_str(), &guard_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX, nullptr) != SQLITE_OK) {
+      sqlite3_close_v2(guard_);
+      guard_ = nullptr;
+      return false;
+    }
+    sqlite3_wal_autocheckpoint(guard_, 0);
+    sqlite3_busy_timeout(guard_, 200);
+  }
+  // Nobody can commit (and so reset the WAL) while the guard holds the write lock.
+  if (sqlite3_exec(guard_, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) != SQLITE_OK) return false;
+  int rc = sqlite3_wal_checkpoint_v2(db_, "main", SQLITE_CHECKPOINT_PASSIVE, nullptr, nullptr);
+  sqlite3_exec(guard_, "ROLLBACK", nullptr, nullptr, nullptr);
+  return rc == SQLITE_OK;
+}
+
 Db::Db(const std::string& path, int busy_timeout_ms) : path_(path), busy_timeout_ms_(busy_timeout_ms) {
+  require_local_filesystem(path);
   int rc = sqlite3_open_v2(path.c_str(), &db_,
                            SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
   if (rc != SQLITE_OK) {
@@ -21,9 +83,11 @@ Db::Db(const std::string& path, int busy_timeout_ms) : path_(path), busy_timeout
   }
   sqlite3_extended_result_codes(db_, 1);
   sqlite3_busy_timeout(db_, busy_timeout_ms);
+  sqlite3_wal_hook(db_, checkpoint_under_write_lock, this);
 }
 
 Db::~Db() {
+  if (guard_) sqlite3_close_v2(guard_);
   if (db_) sqlite3_close_v2(db_);
 }
 
@@ -115,7 +179,21 @@ std::optional<double> Stmt::opt_f64(int c) const {
   return f64(c);
 }
 
-Tx::Tx(Db& db, bool immediate) : db_(db) {
+namespace {
+// Fault injection for the hardening tests, as SQLite tests itself: MESHMARK_FAIL_DB_WRITE=N makes
+// the Nth write transaction of this process fail at its commit (rolled back, as on a full disk or
+// an I/O error). Unset in production.
+bool injected_commit_failure() {
+  static const long fail_at = [] {
+    const char* v = std::getenv("MESHMARK_FAIL_DB_WRITE");
+    return v ? std::strtol(v, nullptr, 10) : 0L;
+  }();
+  static std::atomic<long> commits{0};
+  return fail_at > 0 && ++commits == fail_at;
+}
+}  // namespace
+
+Tx::Tx(Db& db, bool immediate) : db_(db), immediate_(immediate) {
   db_.exec(immediate ? "BEGIN IMMEDIATE" : "BEGIN", "begin transaction");
 }
 Tx::~Tx() {
@@ -126,6 +204,8 @@ void Tx::commit() {
   // progress" and would make COMMIT fail; their results are already copied out, so reset them.
   for (sqlite3_stmt* s = sqlite3_next_stmt(db_.get(), nullptr); s; s = sqlite3_next_stmt(db_.get(), s))
     if (sqlite3_stmt_busy(s)) sqlite3_reset(s);
+  if (immediate_ && injected_commit_failure())
+    throw StoreError("commit: disk I/O error (injected: MESHMARK_FAIL_DB_WRITE)");
   db_.exec("COMMIT", "commit");
   done_ = true;
 }

@@ -11,6 +11,17 @@
 
 namespace mm::store::sql {
 
+// The name of a network file system's statfs() magic number, or nullptr for a local one.
+const char* network_filesystem_name(long f_type);
+// StoreError naming the path when the database's folder is on a network file system: SQLite's
+// write-ahead log needs shared memory between the processes of one machine.
+void require_local_filesystem(const std::string& db_path);
+
+// One connection. Checkpoints are never automatic: SQLite up to 3.51.2 (Debian 12 has 3.40.1)
+// has a data race, the "WAL-reset bug", in which a checkpoint that starts while another
+// connection's commit resets the write-ahead log can corrupt the database. So, after a commit
+// leaves 1000 pages in the log, checkpoint() runs the checkpoint while a second connection holds
+// the write lock: no commit, and so no reset, can overlap it.
 class Db {
  public:
   Db(const std::string& path, int busy_timeout_ms);
@@ -25,10 +36,14 @@ class Db {
   // concurrent openers failed "enabling WAL: database is locked" about once in 30 runs.
   void exec_retrying_busy(const std::string& sql, const char* what);
   std::string path() const { return path_; }
+  // A passive checkpoint under the write lock; false when the lock was not free within 200 ms
+  // (the next commit tries again).
+  bool checkpoint();
 
  private:
   int exec_once(const std::string& sql, std::string& msg);
   sqlite3* db_ = nullptr;
+  sqlite3* guard_ = nullptr;  // holds the write lock during checkpoint()
   std::string path_;
   int busy_timeout_ms_ = 0;
 };
@@ -79,6 +94,7 @@ class Tx {
 
  private:
   Db& db_;
+  bool immediate_ = true;  // a write transaction
   bool done_ = false;
 };
 

@@ -34,6 +34,7 @@ EnqueueResult SqliteStore::insert_job(const JobSpec& spec, const std::string& ac
 std::optional<Job> SqliteStore::claim(const std::string& worker_id, Millis lease, const std::vector<std::string>& kinds) {
   if (worker_id.empty()) throw StoreError("claim: worker id is empty");
   std::lock_guard<std::mutex> l(m_);
+  UnsyncedCommits unsynced(db_, opt_.synchronous_full);
   Tx tx(db_);
   Millis t = now();
   reap(t);
@@ -54,6 +55,7 @@ std::optional<Job> SqliteStore::claim(const std::string& worker_id, Millis lease
 
 void SqliteStore::heartbeat(std::int64_t job_id, const std::string& worker_id, Millis lease) {
   std::lock_guard<std::mutex> l(m_);
+  UnsyncedCommits unsynced(db_, opt_.synchronous_full);
   Tx tx(db_);
   Stmt u(db_, "UPDATE jobs SET lease_until = ? WHERE id = ? AND state = 'running' AND worker_id = ?");
   u.bind(1, now() + lease).bind(2, job_id).bind(3, worker_id).run();
@@ -92,18 +94,19 @@ CompleteResult SqliteStore::complete(std::int64_t job_id, const std::string& wor
 JobState SqliteStore::fail(std::int64_t job_id, const std::string& worker_id, const std::string& error, bool retryable) {
   std::lock_guard<std::mutex> l(m_);
   Tx tx(db_);
-  Stmt q(db_, "SELECT attempt, max_attempts FROM jobs WHERE id = ? AND state = 'running' AND worker_id = ?");
+  Stmt q(db_, "SELECT attempt, max_attempts, rescues FROM jobs WHERE id = ? AND state = 'running' AND worker_id = ?");
   if (!q.bind(1, job_id).bind(2, worker_id).step()) throw lease_lost(job_id, worker_id);
   int attempt = static_cast<int>(q.i64(0));
   int max_attempts = static_cast<int>(q.i64(1));
+  int failures = attempt - static_cast<int>(q.i64(2));  // rescues from dead workers spend no attempt
   Millis t = now();
-  JobState next = retryable && attempt < max_attempts ? JobState::retryable : JobState::discarded;
+  JobState next = retryable && failures < max_attempts ? JobState::retryable : JobState::discarded;
   Stmt u(db_,
          "UPDATE jobs SET state = ?1, scheduled_at = ?2, finished_at = ?3, lease_until = NULL, "
          "errors_json = json_insert(errors_json, '$[#]', json_object('attempt', attempt, 'at', ?4, 'error', ?5)) "
          "WHERE id = ?6");
   u.bind(1, to_string(next));
-  if (next == JobState::retryable) u.bind(2, t + backoff(attempt)).bind_null(3);
+  if (next == JobState::retryable) u.bind(2, t + backoff(failures)).bind_null(3);
   else u.bind(2, t).bind(3, t);
   u.bind(4, t).bind(5, clip(error, 4000)).bind(6, job_id).run();
   if (next == JobState::discarded)
@@ -142,7 +145,7 @@ bool SqliteStore::retry(std::int64_t job_id, const std::string& actor) {
   Tx tx(db_);
   Stmt u(db_,
          "UPDATE jobs SET state = 'available', scheduled_at = ?, finished_at = NULL, "
-         "max_attempts = MAX(max_attempts, attempt + 1) "
+         "max_attempts = MAX(max_attempts, attempt - rescues + 1), rescues = 0 "
          "WHERE id = ? AND state IN ('retryable', 'discarded', 'cancelled')");
   u.bind(1, now()).bind(2, job_id).run();
   if (u.changes() == 0) return false;

@@ -30,7 +30,7 @@ using sql::Tx;
 constexpr const char* kJobCols =
     "id, kind, payload_json, state, priority, attempt, max_attempts, "
     "COALESCE(idempotency_key, ''), created_at, scheduled_at, attempted_at, finished_at, "
-    "worker_id, lease_until, errors_json, result_json";
+    "worker_id, lease_until, errors_json, result_json, rescues";
 
 inline Job read_job(const Stmt& s) {
   Job j;
@@ -53,6 +53,7 @@ inline Job read_job(const Stmt& s) {
     for (const auto& e : errs)
       j.errors.push_back({e.value("attempt", 0), e.value("at", Millis{0}), e.value("error", std::string())});
   j.result_json = s.text(15);
+  j.rescues = static_cast<int>(s.i64(16));
   return j;
 }
 
@@ -261,6 +262,20 @@ class SqliteStore final : public Store {
     return *opt_.master_key;
   }
 
+  // Commits inside its scope are not fsynced (synchronous=NORMAL): for claims and heartbeats,
+  // whose loss in a power cut only makes a job claimable again. The next FULL commit (a
+  // completion, an enqueue) fsyncs the log with them.
+  struct UnsyncedCommits {
+    Db& db;
+    bool full;
+    UnsyncedCommits(Db& d, bool f) : db(d), full(f) {
+      if (full) db.exec("PRAGMA synchronous=NORMAL", "setting synchronous");
+    }
+    ~UnsyncedCommits() {
+      if (full) sqlite3_exec(db.get(), "PRAGMA synchronous=FULL", nullptr, nullptr, nullptr);
+    }
+  };
+
   void fault(const char* point) {
     if (opt_.fault_injection) opt_.fault_injection(point);
   }
@@ -443,13 +458,15 @@ class SqliteStore final : public Store {
   int reap(Millis t) {
     Stmt u(db_,
            "UPDATE jobs SET "
-           "state = CASE WHEN attempt >= max_attempts THEN 'discarded' ELSE 'available' END, "
-           "finished_at = CASE WHEN attempt >= max_attempts THEN ?1 ELSE NULL END, "
+           "state = CASE WHEN rescues + 1 >= ?2 THEN 'discarded' ELSE 'available' END, "
+           "finished_at = CASE WHEN rescues + 1 >= ?2 THEN ?1 ELSE NULL END, "
+           "rescues = rescues + 1, "
            "errors_json = json_insert(errors_json, '$[#]', json_object('attempt', attempt, 'at', ?1, "
-           "'error', 'lease expired: worker ' || worker_id || ' stopped heartbeating')), "
+           "'error', 'lease expired: worker ' || worker_id || ' stopped heartbeating (rescue ' || "
+           "(rescues + 1) || ' of at most ' || ?2 || ')')), "
            "lease_until = NULL "
            "WHERE state = 'running' AND lease_until < ?1");
-    u.bind(1, t).run();
+    u.bind(1, t).bind(2, kMaxRescues).run();
     return u.changes();
   }
 

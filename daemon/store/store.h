@@ -7,9 +7,10 @@
 //  - states available / running / completed / retryable / discarded / cancelled; every transition
 //    (table in job_transition_allowed) is one transaction;
 //  - claim is atomic: one job goes to exactly one worker, with a lease; a worker keeps the lease
-//    alive with heartbeat(); a job whose lease expired is claimable again (a new attempt);
-//  - fail() makes a job retryable after exponential backoff with jitter, until max_attempts, then
-//    discarded; every error is kept in the job's error list;
+//    alive with heartbeat(); a job whose lease expired is rescued: claimable again without
+//    spending an attempt, up to kMaxRescues rescues, then discarded (it may be what kills workers);
+//  - fail() makes a job retryable after exponential backoff with jitter, until max_attempts
+//    failures, then discarded; every error is kept in the job's error list;
 //  - complete() writes the job's records (copies, detections, audit entries, result) in the same
 //    transaction that marks it completed: after a crash a job is done exactly once in effect;
 //  - an idempotency key makes a duplicate submission return the existing job, and issued copies are
@@ -148,11 +149,16 @@ JobState job_state_from_string(const std::string& s);  // StoreError if unknown
 //   available  -> running (claim), cancelled (cancel)
 //   retryable  -> running (claim once scheduled), available (retry), cancelled (cancel)
 //   running    -> completed (complete), retryable (fail, attempts left), discarded (fail, none
-//                 left, or not retryable; also lease expired with none left), available (lease
-//                 expired with attempts left, or release on shutdown), cancelled (cancel)
+//                 left, or not retryable; also lease expired for the kMaxRescues-th time),
+//                 available (lease expired, or release on shutdown), cancelled (cancel)
 //   discarded  -> available (retry), cancelled -> available (retry); completed is final.
 // Worker ids must be unique per worker thread and process (e.g. "host:pid:thread").
 bool job_transition_allowed(JobState from, JobState to);
+
+// A job taken back this many times from workers that stopped heartbeating is discarded: a kill
+// storm or a host crash does not use up a job's attempts, but a job that itself kills its worker
+// (out of memory, a crash in a library) must not cycle forever.
+constexpr int kMaxRescues = 20;
 
 struct JobSpec {
   std::string kind;                // "protect", "detect", "noop", ... (handlers registered by kind)
@@ -176,7 +182,8 @@ struct Job {
   JobState state = JobState::available;
   int priority = 0;
   int attempt = 0;  // claims so far (incremented by each claim)
-  int max_attempts = 0;
+  int max_attempts = 0;  // failures allowed: attempt - rescues reaching it discards the job
+  int rescues = 0;       // claims lost to a worker that stopped heartbeating (see kMaxRescues)
   std::string idempotency_key;
   Millis created_at = 0;
   Millis scheduled_at = 0;

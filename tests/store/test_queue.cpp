@@ -124,22 +124,52 @@ TEST(Queue, ExpiredLeaseIsClaimableAgainAndOldWorkerLosesIt) {
   EXPECT_EQ(s->get_job(id)->state, JobState::completed);
 }
 
-TEST(Queue, ReaperDiscardsJobWhoseWorkerKeepsDyingAtMaxAttempts) {
+TEST(Queue, KillStormDoesNotUseUpAttempts) {
   TempDir dir;
   StepClock clock;
   auto s = store::open_sqlite_store(options(dir, &clock));
   auto id = s->enqueue(spec("noop", 0, 2)).job.id;
-  ASSERT_TRUE(s->claim("w1", 100));
+  for (int kill = 0; kill < 10; ++kill) {  // ten workers die holding the job
+    ASSERT_TRUE(s->claim("w" + std::to_string(kill), 100)) << "kill " << kill;
+    clock.advance(101);
+    EXPECT_EQ(s->reap_expired_leases(), 1);
+    EXPECT_EQ(s->get_job(id)->state, JobState::available) << "kill " << kill;
+  }
+  // Its own failures still count: with max_attempts 2, one failure is retried, the second discards.
+  ASSERT_TRUE(s->claim("w", 100));
+  EXPECT_EQ(s->fail(id, "w", "first"), JobState::retryable);
+  clock.advance(1'000'000);
+  ASSERT_TRUE(s->claim("w", 100));
+  EXPECT_EQ(s->fail(id, "w", "second"), JobState::discarded);
+  auto j = s->get_job(id);
+  EXPECT_EQ(j->rescues, 10);
+  EXPECT_EQ(j->attempt, 12);
+  EXPECT_EQ(j->errors.size(), 12u);
+}
+
+TEST(Queue, JobThatKeepsKillingItsWorkerIsDiscardedAfterMaxRescues) {
+  TempDir dir;
+  StepClock clock;
+  auto s = store::open_sqlite_store(options(dir, &clock));
+  auto id = s->enqueue(spec("noop", 0, 5)).job.id;
+  for (int kill = 0; kill < store::kMaxRescues; ++kill) {
+    ASSERT_TRUE(s->claim("w", 100)) << "kill " << kill;
+    clock.advance(101);
+    EXPECT_EQ(s->reap_expired_leases(), 1);
+  }
+  auto j = s->get_job(id);
+  EXPECT_EQ(j->state, JobState::discarded);
+  EXPECT_EQ(j->rescues, store::kMaxRescues);
+  ASSERT_EQ(j->errors.size(), static_cast<size_t>(store::kMaxRescues));
+  EXPECT_NE(j->errors.back().error.find("rescue 20 of at most 20"), std::string::npos) << j->errors.back().error;
+  EXPECT_FALSE(s->claim("w", 100));
+  // An operator's retry gives it a fresh rescue allowance.
+  EXPECT_TRUE(s->retry(id, "admin"));
+  EXPECT_EQ(s->get_job(id)->rescues, 0);
+  ASSERT_TRUE(s->claim("w", 100));
   clock.advance(101);
   EXPECT_EQ(s->reap_expired_leases(), 1);
   EXPECT_EQ(s->get_job(id)->state, JobState::available);
-  ASSERT_TRUE(s->claim("w1", 100));
-  clock.advance(101);
-  EXPECT_EQ(s->reap_expired_leases(), 1);
-  auto j = s->get_job(id);
-  EXPECT_EQ(j->state, JobState::discarded);
-  EXPECT_EQ(j->errors.size(), 2u);
-  EXPECT_FALSE(s->claim("w1", 100));
 }
 
 TEST(Queue, RetriesWithExponentialBackoffAndJitterThenDiscardsKeepingErrors) {
