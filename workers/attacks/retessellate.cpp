@@ -12,6 +12,7 @@
 
 #include <array>
 #include <numeric>
+#include <stdexcept>
 #include <string>
 
 #include "subdivision/decompress.h"
@@ -72,19 +73,29 @@ Mesh from_surface_mesh(SurfaceMesh& sm) {
 
 Mesh remesh_isotropic(const Mesh& mesh, double edge_length, int iterations) {
   if (!(edge_length > 0) || iterations < 1) throw std::invalid_argument("remesh_isotropic: bad edge length or iterations");
-  SurfaceMesh sm = to_surface_mesh(mesh, "remesh");
   const double target = edge_length * diagonal(mesh);
-  auto is_feature = sm.add_property_map<SurfaceMesh::Edge_index, bool>("e:is_feature", false).first;
-  PMP::detect_sharp_edges(sm, 60.0, is_feature);
-  std::vector<SurfaceMesh::Edge_index> features;
-  for (auto e : sm.edges())
-    if (is_feature[e]) features.push_back(e);
-  PMP::split_long_edges(features, target, sm, CGAL::parameters::edge_is_constrained_map(is_feature));
-  PMP::isotropic_remeshing(sm.faces(), target, sm,
-                           CGAL::parameters::number_of_iterations(static_cast<unsigned>(iterations))
-                               .edge_is_constrained_map(is_feature)
-                               .protect_constraints(true));
-  return from_surface_mesh(sm);
+  auto remesh = [&](bool protect) {
+    SurfaceMesh sm = to_surface_mesh(mesh, "remesh");
+    auto is_feature = sm.add_property_map<SurfaceMesh::Edge_index, bool>("e:is_feature", false).first;
+    PMP::detect_sharp_edges(sm, 60.0, is_feature);
+    std::vector<SurfaceMesh::Edge_index> features;
+    for (auto e : sm.edges())
+      if (is_feature[e]) features.push_back(e);
+    PMP::split_long_edges(features, target, sm, CGAL::parameters::edge_is_constrained_map(is_feature));
+    PMP::isotropic_remeshing(sm.faces(), target, sm,
+                             CGAL::parameters::number_of_iterations(static_cast<unsigned>(iterations))
+                                 .edge_is_constrained_map(is_feature)
+                                 .protect_constraints(protect));
+    return from_surface_mesh(sm);
+  };
+  // CGAL's protected-constraint bookkeeping fails (std::out_of_range from a map lookup) on some
+  // feature networks, e.g. a decoded subdivision surface's dense crease chains; the sharp edges
+  // then stay constrained but may be split and flipped along themselves, as mesh tools do.
+  try {
+    return remesh(true);
+  } catch (const std::out_of_range&) {
+    return remesh(false);
+  }
 }
 
 Mesh simplify_edges(const Mesh& mesh, double keep_fraction) {
