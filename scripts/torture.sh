@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Fault injection over the whole service, as SQLite tests itself: meshmarkd is killed (SIGKILL) at
-# seeded random moments, then `meshmark run` is made to fail its Nth file write (MESHMARK_FAIL_WRITE)
+# Fault injection over the whole service, as SQLite tests itself: meshmarkd is killed (SIGKILL) after
+# a seeded random life of 1 to 6 s, then `meshmark run` is made to fail its Nth file write (MESHMARK_FAIL_WRITE)
 # and its Nth database commit (MESHMARK_FAIL_DB_WRITE), N = 1, 2, ... Work keeps arriving (protect
 # jobs for two customers and a detect job per new part). At the end a clean daemon drains the queue
 # and the script checks: every job completed exactly once (one copy per protect job, one detection
@@ -52,7 +52,7 @@ for ((i = 1; i <= KILLS; i++)); do
   while [ "$(pending)" -lt 6 ]; do new_part; done
   "$MMD" --config "$T/config.json" >>"$T/daemon.log" 2>&1 &
   pid=$!
-  sleep "$(awk -v r=$RANDOM 'BEGIN { printf "%.2f", 0.2 + 1.8 * r / 32767 }')"
+  sleep "$(awk -v r=$RANDOM 'BEGIN { printf "%.2f", 1 + 5 * r / 32767 }')"  # a life of 1 to 6 s
   kill -9 "$pid"
   wait "$pid" 2>/dev/null || true
   pid=""
