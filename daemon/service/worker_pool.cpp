@@ -157,6 +157,7 @@ void WorkerPool::worker_main(int index) {
   // discarded at once with that reason, as the queue contract says, instead of waiting forever.
   std::string known;
   for (const auto& [k, h] : handlers_) known += (known.empty() ? "" : ", ") + k;
+  bool trim_pending = false;
   while (st && !stop_) {
     auto cfg = config_();
     std::optional<store::Job> job;
@@ -166,6 +167,10 @@ void WorkerPool::worker_main(int index) {
       spdlog::warn("{}: claim failed: {}", worker_id, e.what());
     }
     if (!job) {
+      if (trim_pending) {  // idle: what the last short jobs freed goes back too
+        return_freed_memory();
+        trim_pending = false;
+      }
       if (exit_when_empty_) break;
       std::unique_lock<std::mutex> l(m_);
       auto seen = wakeups_;
@@ -208,7 +213,10 @@ void WorkerPool::worker_main(int index) {
       error = "unknown exception";
     }
     double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    return_freed_memory();
+    // malloc_trim walks the heap: after a job of a tenth of a second or more (a real part), not
+    // after every one of a burst of tiny jobs, which are trimmed once the worker is idle.
+    trim_pending = secs < 0.1;
+    if (!trim_pending) return_freed_memory();
     std::string outcome;
     try {
       if (cancelled) {
