@@ -1,5 +1,7 @@
 #include "store/sqlite_db.h"
 
+#include "support/fault_injection.h"
+
 #include <sys/vfs.h>
 
 #include <atomic>
@@ -179,20 +181,6 @@ std::optional<double> Stmt::opt_f64(int c) const {
   return f64(c);
 }
 
-namespace {
-// Fault injection for the hardening tests, as SQLite tests itself: MESHMARK_FAIL_DB_WRITE=N makes
-// the Nth write transaction of this process fail at its commit (rolled back, as on a full disk or
-// an I/O error). Unset in production.
-bool injected_commit_failure() {
-  static const long fail_at = [] {
-    const char* v = std::getenv("MESHMARK_FAIL_DB_WRITE");
-    return v ? std::strtol(v, nullptr, 10) : 0L;
-  }();
-  static std::atomic<long> commits{0};
-  return fail_at > 0 && ++commits == fail_at;
-}
-}  // namespace
-
 Tx::Tx(Db& db, bool immediate) : db_(db), immediate_(immediate) {
   db_.exec(immediate ? "BEGIN IMMEDIATE" : "BEGIN", "begin transaction");
 }
@@ -204,7 +192,7 @@ void Tx::commit() {
   // progress" and would make COMMIT fail; their results are already copied out, so reset them.
   for (sqlite3_stmt* s = sqlite3_next_stmt(db_.get(), nullptr); s; s = sqlite3_next_stmt(db_.get(), s))
     if (sqlite3_stmt_busy(s)) sqlite3_reset(s);
-  if (immediate_ && injected_commit_failure())
+  if (immediate_ && support::injected_fault("MESHMARK_FAIL_DB_WRITE"))  // tests only
     throw StoreError("commit: disk I/O error (injected: MESHMARK_FAIL_DB_WRITE)");
   db_.exec("COMMIT", "commit");
   done_ = true;

@@ -30,6 +30,9 @@ constexpr store::Millis kLease = 300;
         std::this_thread::sleep_for(std::chrono::milliseconds(20));  // wait for expired leases
         continue;
       }
+      // The job's work: a kill often lands while the job is held (claims commit without fsync,
+      // so without it the claim-to-completion window is a few microseconds).
+      std::this_thread::sleep_for(std::chrono::microseconds(500));
       store::JobRecords r;
       store::NewCopy c;
       c.asset_id = asset.id;

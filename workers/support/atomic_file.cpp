@@ -1,5 +1,7 @@
 #include "support/atomic_file.h"
 
+#include "support/fault_injection.h"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -24,18 +26,6 @@ std::filesystem::path folder_of(const std::string& path) {
   return parent.empty() ? std::filesystem::path(".") : parent;
 }
 
-// Fault injection for the hardening tests, as SQLite tests itself: MESHMARK_FAIL_WRITE=N makes
-// the Nth atomic file write of this process fail with ENOSPC (after creating its temporary, which
-// is removed as on a real failure). Unset in production.
-bool injected_failure() {
-  static const long fail_at = [] {
-    const char* v = std::getenv("MESHMARK_FAIL_WRITE");
-    return v ? std::strtol(v, nullptr, 10) : 0L;
-  }();
-  static std::atomic<long> writes{0};
-  return fail_at > 0 && ++writes == fail_at;
-}
-
 // A written, fsynced temporary beside `path`; its name.
 std::string write_temporary(const std::string& path, std::string_view bytes, unsigned mode) {
   std::string name = (folder_of(path) / ("." + std::filesystem::path(path).filename().string() + kTemporaryTag +
@@ -50,7 +40,7 @@ std::string write_temporary(const std::string& path, std::string_view bytes, uns
     fail(err, step);
   };
   if (::fchmod(fd, static_cast<mode_t>(mode)) != 0) give_up("cannot set the mode");
-  if (injected_failure()) {
+  if (injected_fault("MESHMARK_FAIL_WRITE")) {  // tests only (support/fault_injection.h)
     errno = ENOSPC;
     give_up("cannot write");
   }
