@@ -31,7 +31,7 @@ cat >"$T/config.json" <<EOF
 {"home": "home", "drop_dir": "drop", "output_dir": "out", "workers": 2, "lease_seconds": 5,
  "heartbeat_seconds": 1, "poll_interval_ms": 100, "evidence": {"auto": false}, "log_level": "warn"}
 EOF
-q() { sqlite3 "$H/meshmark.db" "$1"; }
+q() { sqlite3 -cmd ".timeout 10000" "$H/meshmark.db" "$1"; }
 pending() { q "SELECT COUNT(*) FROM jobs WHERE state IN ('available', 'retryable', 'running')"; }
 for s in chamfered_block plate_with_holes flanged_cylinder; do "$MM" sample "$s" "$T/parts/$s.off" >/dev/null; done
 parts=0

@@ -4,9 +4,7 @@
 
 #include <sys/vfs.h>
 
-#include <atomic>
 #include <chrono>
-#include <cstdlib>
 #include <filesystem>
 #include <thread>
 
