@@ -110,6 +110,8 @@ TEST_F(ConfigTest, MissingFoldersAndBadCombinations) {
 TEST_F(ConfigTest, NotJsonOrNotAnObject) {
   EXPECT_NE(expect_error("{ home: 1").find("not valid JSON"), std::string::npos);
   EXPECT_NE(expect_error("[1, 2]").find("must be a JSON object"), std::string::npos);
+  // A number past double's range is nlohmann's out_of_range, not a parse_error: still a ConfigError.
+  EXPECT_NE(expect_error(R"({"workers": 888e888})").find("not valid JSON"), std::string::npos);
   EXPECT_THROW(load_config((dir / "absent.json").string()), ConfigError);
 }
 
