@@ -103,7 +103,7 @@ read -r wall user rss <"$R/time"
 echo "run $R: $(cat "$R/run.txt")"
 echo "detect jobs: wall ${wall} s, CPU user ${user} s, peak RSS $((rss / 1024)) MB, $WORKERS workers"
 python3 - "$R" "$W/setup/home" "$MM" "$WORKERS" "$here" <<'PY'
-import json, subprocess, sys, collections
+import json, os, subprocess, sys, collections
 run, home, mm, workers = sys.argv[1:5]
 dets = json.load(open(run + "/detections.json"))
 customers = {c["id"]: c["name"] for c in json.loads(subprocess.check_output([mm, "customer", "list", "--home", home, "--json"]))}
@@ -145,9 +145,25 @@ for path, secs in sorted(paths.items()):
 leaks = [r for r in rows if r[2] != "nobody"]
 innocent = [r for r in rows if r[2] == "nobody"]
 print()
+# The mark's own cost on each part's issued copies (the protect jobs' results): how far the
+# decoded copy's vertices lie from the unmarked surface's, over the diagonal (median of the copies).
+protects = json.loads(subprocess.check_output([mm, "jobs", "list", "--home", home, "--kind", "protect", "--json",
+                                               "--limit", "100000"]))["jobs"]
+cost = {}
+for j in protects:
+    r = j.get("result") or {}
+    if isinstance(r, str):
+        r = json.loads(r or "{}")
+    if "output" in r:
+        cost.setdefault(os.path.basename(r["output"]).rsplit("-", 1)[0], []).append(r)
+print("%-10s %8s %8s %12s %12s  (mark cost: median over the part's copies)" % (
+    "part", "control", "stream B", "mark max %", "mark RMS %"))
+for part, rs in sorted(cost.items()):
+    med = lambda k: sorted(x.get(k, 0) for x in rs)[len(rs) // 2]
+    print("%-10s %8d %8d %12.3f %12.3f" % (part, med("control_vertices"), med("stream_bytes"), 100 * med("mark_max"),
+                                           100 * med("mark_rms")))
 # -log10 p against strength per attack (as the paper's Figure 8), one curve per part, with the
 # threshold: docs/results/detect-<attack>.png.
-import os
 results = os.path.join(sys.argv[5], "docs", "results")
 labels = {"noise": "uniform noise (x largest side)", "quantize": "bits", "smooth": "smoothing steps (lambda 0.5)",
           "simplify": "edges kept", "remesh": "edge length (x diagonal)", "crop": "share of the longest side kept"}

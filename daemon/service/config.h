@@ -42,6 +42,7 @@ struct Config {
   std::string output_format = "same";  // same | stl | obj | off | ply
   jobs::WatermarkSettings watermark;
   int max_vertices = 4000;          // watermark.max_vertices: cap on the control polyhedron
+  int min_mark_vertices = 200;      // watermark.min_vertices: smaller polyhedra are refined for the mark
   CompressOptions compression;      // compression.{tolerance, max_vertices, levels, angle}
   int stream_bits = 16;             // compression.stream_bits: quantisation of the .mmc copies
   // compression.fallback_angles: tried in turn when compression.angle misses the tolerance

@@ -147,6 +147,7 @@ jobs::PrepareParams prepare_params(const Config& cfg) {
   pp.compression = cfg.compression;
   pp.fallback_angles = cfg.fallback_angles;
   pp.max_control_vertices = cfg.max_vertices;
+  pp.min_mark_vertices = cfg.min_mark_vertices;
   return pp;
 }
 
@@ -364,6 +365,13 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
               {"control_vertices", prep.control.num_vertices()},
               {"decoded_vertices", files.decoded.num_vertices()},
               {"coefficients_per_bit", spread}};
+  try {  // the mark's own cost, as fractions of the part's diagonal
+    const jobs::MarkCost cost = jobs::mark_cost(prep, files.decoded);
+    result["mark_max"] = cost.max;
+    result["mark_rms"] = cost.rms;
+  } catch (const std::invalid_argument& e) {
+    spdlog::warn("job {}: {}", job.id, e.what());
+  }
   if (!warning.empty()) result["warning"] = warning;
   rec.result_json = result.dump();
   return rec;

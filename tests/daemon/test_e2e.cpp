@@ -303,8 +303,12 @@ TEST_F(E2E, ProtectsTwoCustomersAndTracesTheLeak) {
         << r->dump();
     EXPECT_LT((*r)["calibrated_p"].get<double>(), 1e-9) << r->dump();
     EXPECT_GT((*r)["null_sd"].get<double>(), 0) << r->dump();
-    const double sign = std::min(-std::log10((*r)["binomial_p"].get<double>()),
-                                 -std::log10((*r)["calibrated_p"].get<double>()));
+    const double larger = std::max((*r)["binomial_p"].get<double>(), (*r)["calibrated_p"].get<double>());
+    if (larger < 1e-300) {  // both p-values underflow a double: only the -log10 forms carry them
+      EXPECT_GT((*r)["sign_neg_log10_p"].get<double>(), 300) << r->dump();
+      continue;
+    }
+    const double sign = -std::log10(larger);
     EXPECT_NEAR((*r)["sign_neg_log10_p"].get<double>(), sign, 1e-6) << r->dump();
     const double best = std::max(sign, (*r)["matched_neg_log10_p"].get<double>());
     EXPECT_NEAR((*r)["neg_log10_p"].get<double>(),
@@ -590,7 +594,8 @@ TEST_F(E2E, BatchRunUntilEmptyWithoutDaemon) {
   EXPECT_EQ(count_files(drop / "done/protect/beta"), 1);
   EXPECT_EQ(store()->list_copies().size(), 3u);
   // Each protect job tells how widely its payload is spread, and warns below 4 coefficients a
-  // bit: abc7's 24 control vertices give 2 for the default 32 bits.
+  // bit. abc7's 24 control vertices (2 a bit for the default 32 bits) are refined twice to reach
+  // watermark.min_vertices, and decoded two levels less; the job reports the mark's cost.
   bool abc7_seen = false;
   for (const auto& j : store()->list_jobs({})) {
     const json res = json::parse(j.result_json);
@@ -598,12 +603,14 @@ TEST_F(E2E, BatchRunUntilEmptyWithoutDaemon) {
     const int spread = res["coefficients_per_bit"].get<int>();
     EXPECT_EQ(spread, 3 * res["control_vertices"].get<int>() / 32) << j.result_json;
     EXPECT_EQ(res.contains("warning"), spread < 4) << j.result_json;
+    ASSERT_TRUE(res.contains("mark_max") && res.contains("mark_rms")) << j.result_json;
+    EXPECT_GT(res["mark_rms"].get<double>(), 0) << j.result_json;
+    EXPECT_LT(res["mark_rms"].get<double>(), res["mark_max"].get<double>()) << j.result_json;
+    EXPECT_LT(res["mark_max"].get<double>(), 0.02) << j.result_json;
     if (j.payload_json.find("abc7") == std::string::npos) continue;
     abc7_seen = true;
-    EXPECT_EQ(spread, 2) << j.result_json;
-    ASSERT_TRUE(res.contains("warning"));
-    EXPECT_NE(res["warning"].get<std::string>().find("2 coefficients a bit"), std::string::npos) << j.result_json;
-    EXPECT_NE(log().find("abc7.stl: 24 control vertices spread the 32-bit payload"), std::string::npos) << log();
+    EXPECT_GE(res["control_vertices"].get<int>(), 200) << j.result_json;
+    EXPECT_FALSE(res.contains("warning")) << j.result_json;
   }
   EXPECT_TRUE(abc7_seen);
 }

@@ -12,6 +12,7 @@
 #include "jobs/protect.h"
 #include "meshio/read_mesh.h"
 #include "quality/surface_distance.h"
+#include "subdivision/decompress.h"
 
 namespace mm::jobs {
 namespace {
@@ -30,7 +31,9 @@ TEST(Payload, BitsAndHexRoundTrip) {
 TEST(PreparedAsset, CompressedPolyhedronRoundTripsExactly) {
   MM_REQUIRE_SHARED_MESHES();
   Mesh m = read_mesh(test::shared_mesh("abc7.stl"));
-  PreparedAsset a = prepare_asset(m, {}, "abc7.stl");
+  PrepareParams fit_only;
+  fit_only.min_mark_vertices = 0;  // the compressor's polyhedron as it is
+  PreparedAsset a = prepare_asset(m, fit_only, "abc7.stl");
   EXPECT_LT(a.control.num_vertices(), m.num_vertices());
   EXPECT_FALSE(a.control.creases.empty());
   EXPECT_EQ(a.levels, 3);
@@ -67,7 +70,9 @@ TEST(PreparedAsset, CacheKeyNamesEveryCompressionOption) {
                       +[](PrepareParams& q) { q.compression.coarsen = true; },
                       +[](PrepareParams& q) { q.compression.seed = 2; },
                       +[](PrepareParams& q) { q.fallback_angles = {}; },
-                      +[](PrepareParams& q) { q.fallback_angles = {30, 20}; }}) {
+                      +[](PrepareParams& q) { q.fallback_angles = {30, 20}; },
+                      +[](PrepareParams& q) { q.min_mark_vertices = 0; },
+                      +[](PrepareParams& q) { q.min_mark_vertices = 400; }}) {
     PrepareParams q;
     change(q);
     EXPECT_NE(q.key(), k);
@@ -83,6 +88,38 @@ TEST(PreparedAsset, CacheKeyNamesEveryCompressionOption) {
   EXPECT_EQ(cap.key(), k);
 }
 
+// A small part's polyhedron (abc7: 24 control vertices) is refined by whole subdivision steps
+// until it has min_mark_vertices, within max_control_vertices, and decoded one level less: the
+// decoded copy is the same surface with the same number of vertices.
+TEST(PreparedAsset, SmallPolyhedraAreRefinedForTheMarkOnTheSameSurface) {
+  MM_REQUIRE_SHARED_MESHES();
+  const Mesh m = read_mesh(test::shared_mesh("abc7.stl"));
+  PrepareParams fit_only;
+  fit_only.min_mark_vertices = 0;
+  const PreparedAsset coarse = prepare_asset(m, fit_only, "abc7.stl"), fine = prepare_asset(m, {}, "abc7.stl");
+  ASSERT_EQ(coarse.refinements, 0);
+  EXPECT_EQ(coarse.control.num_vertices(), 24);
+  EXPECT_EQ(fine.refinements, 2);
+  EXPECT_GE(fine.control.num_vertices(), PrepareParams{}.min_mark_vertices);
+  EXPECT_EQ(fine.levels, coarse.levels - 2);
+  EXPECT_EQ(fine.basis.num_vertices(), fine.control.num_vertices());
+  EXPECT_EQ(fine.control.corners.size(), coarse.control.corners.size());  // children keep their index
+  // The 24 vertices spread a 32-bit payload over 2 coefficients a bit, with a warning; refined, 33.
+  EXPECT_NE(weak_spread_warning("abc7.stl", coarse, 32).find("2 coefficients a bit"), std::string::npos);
+  EXPECT_EQ(weak_spread_warning("abc7.stl", fine, 32), "");
+  const Mesh a = decompress_to_level(coarse.control, coarse.levels), b = decompress_to_level(fine.control, fine.levels);
+  ASSERT_EQ(a.num_vertices(), b.num_vertices());
+  double worst = 0;  // vertex numbering may differ: nearest vertex of the other surface
+  for (int i = 0; i < a.num_vertices(); ++i)
+    worst = std::max(worst, (b.points.rowwise() - a.points.row(i)).rowwise().norm().minCoeff());
+  EXPECT_LT(worst, 1e-12);
+  // A step that would pass the cap is not taken.
+  Mesh once = coarse.control;
+  EXPECT_EQ(refine_for_mark(once, 200, 150), 1);
+  EXPECT_LE(once.num_vertices(), 150);
+  EXPECT_GT(once.num_vertices(), 24);
+}
+
 // compression.coarsen = true in the daemon's config: the prepared polyhedron is the coarsened
 // one, with fewer vertices than its rounds' that met the tolerance, within the tolerance
 // (tolerance_met: the preparation's dense measurement confirmed it), and its basis is that
@@ -91,9 +128,10 @@ TEST(PreparedAsset, CacheKeyNamesEveryCompressionOption) {
 TEST(PreparedAsset, CoarseningShrinksThePolyhedronWithinTheTolerance) {
   MM_REQUIRE_SHARED_MESHES();
   const Mesh m = read_mesh(test::shared_mesh("abc9.stl"));
-  PrepareParams coarse;
+  PrepareParams plain, coarse;
+  plain.min_mark_vertices = coarse.min_mark_vertices = 0;
   coarse.compression.coarsen = true;
-  const PreparedAsset a = prepare_asset(m, {}, "abc9.stl"), b = prepare_asset(m, coarse, "abc9.stl");
+  const PreparedAsset a = prepare_asset(m, plain, "abc9.stl"), b = prepare_asset(m, coarse, "abc9.stl");
   int fewest_met = 1 << 30;
   for (std::size_t k = 0; k < b.compression.round_vertices.size(); ++k)
     if (b.compression.round_errors[k] <= coarse.compression.tolerance)

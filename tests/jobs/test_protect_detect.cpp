@@ -127,9 +127,13 @@ struct ProtectDetect : ::testing::Test {
 };
 
 TEST_F(ProtectDetect, PreparedAssetIsCompressed) {
-  EXPECT_LT(fx->asset.control.num_vertices(), fx->original.num_vertices() / 3);
+  EXPECT_LT(fx->asset.compression.control.num_vertices(), fx->original.num_vertices() / 3);
   EXPECT_FALSE(fx->asset.control.creases.empty());
-  EXPECT_EQ(fx->asset.levels, 3);
+  // The compressor's 99 vertices are refined once for the mark (watermark.min_vertices) and the
+  // copies decoded one level less.
+  EXPECT_EQ(fx->asset.refinements, 1);
+  EXPECT_GE(fx->asset.control.num_vertices(), PrepareParams{}.min_mark_vertices);
+  EXPECT_EQ(fx->asset.levels + fx->asset.refinements, 3);
   EXPECT_LT(fx->asset.compression.stats.hausdorff, 0.01 * fx->asset.compression.stats.diagonal);
 }
 
@@ -138,7 +142,7 @@ TEST_F(ProtectDetect, CopyFilesAreTheMarkedStreamAndItsDecodedSurface) {
   DecodedStream d = decode(f.stream, "copy");
   EXPECT_EQ(d.mesh.num_vertices(), fx->asset.control.num_vertices());
   EXPECT_EQ(d.quantization.bits, StreamSettings{}.quant_bits);
-  EXPECT_EQ(f.decoded.num_vertices(), subdivide(fx->asset.control, 3).num_vertices());
+  EXPECT_EQ(f.decoded.num_vertices(), subdivide(fx->asset.control, fx->asset.levels).num_vertices());
   EXPECT_GT(f.decoded.num_vertices(), 5 * fx->original.num_vertices());
   // The mark moves the part imperceptibly, in the part's own units.
   Mesh unmarked = fx->asset.control;
@@ -180,7 +184,7 @@ TEST_F(ProtectDetect, EveryFormOfACopyIsAttributedToItsCopyOnly) {
   // The polyhedron refined one level finer than the copies, in its own face order: exact.
   Mesh marked = decode(f.stream, "s").mesh;
   marked.faces = fx->asset.control.faces;
-  expect_attributed(subdivide(marked, 4), 1, "polyhedron at level 4", "subdivided");
+  expect_attributed(subdivide(marked, fx->asset.levels + 1), 1, "polyhedron one level finer", "subdivided");
   // A decoded copy refined once more in the leaker's own vertex numbering (edge points in the
   // file's edge order), with the crease rules or, as a generic tool on an OFF/STL file would,
   // without them: the context knows that numbering and the untagged step (docs/registration.md).

@@ -12,6 +12,7 @@
 #include "meshio/read_mesh.h"
 #include "compression/compress_part.h"
 #include "quality/surface_distance.h"
+#include "subdivision/subdivide.h"
 
 namespace mm::jobs {
 
@@ -103,7 +104,19 @@ std::string PrepareParams::key() const {
          ";levels=" + std::to_string(c.levels) + ";angle=" + shortest_text(c.angle_degrees) +
          ";max_rounds=" + std::to_string(c.max_rounds) + (c.rail_quads ? ";quads=rail" : "") + rounds_schedule_key(c) + fit_sampling_key() +
          (c.seed != 1 ? ";seed=" + std::to_string(c.seed) : "") + fallback_key(fallback_angles) +
+         (min_mark_vertices > 0 ? ";mark_min_vertices=" + std::to_string(min_mark_vertices) : "") +
          ";basis=dense-kirchhoff";
+}
+
+int refine_for_mark(Mesh& control, int min_vertices, int max_vertices) {
+  int steps = 0;
+  while (control.num_vertices() < min_vertices) {
+    SubdivisionOperator op = build_subdivision(control, 1);
+    if (op.refined.num_vertices() > max_vertices) break;
+    control = std::move(op.refined);
+    ++steps;
+  }
+  return steps;
 }
 
 std::string ShapeSignature::to_json() const {
@@ -232,7 +245,8 @@ PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
                                  std::to_string(params.max_control_vertices) + " (config watermark.max_vertices)");
   a.normalization = a.compression.normalization;
   apply(a.normalization, a.control.points);
-  a.levels = a.compression.levels;
+  a.refinements = refine_for_mark(a.control, params.min_mark_vertices, params.max_control_vertices);
+  a.levels = std::max(0, a.compression.levels - a.refinements);
   a.signature = shape_signature(original);
   a.footprint = surface_footprint(original);
   a.basis = compute_basis(a.control);

@@ -28,6 +28,12 @@ struct PrepareParams {
   // The basis is dense (n x n doubles): a control budget above this is refused before compressing,
   // and so is a control polyhedron that ends up larger.
   int max_control_vertices = 4000;  // <= kMaxBasisVertices
+  // A smaller control polyhedron is refined by whole subdivision steps until it has at least
+  // this many vertices (the same limit surface, decoded one level less per step), unless a step
+  // would pass max_control_vertices: the mark then spreads over more coefficients, which raises
+  // the p-value floor a small part's few coefficients set (3n coefficients for n vertices).
+  // 0: never. In key() when not 0.
+  int min_mark_vertices = 200;
   std::string key() const;  // canonical cache key of the preparation method and its options
 };
 
@@ -56,8 +62,14 @@ struct PreparedAsset {
   ShapeSignature signature;     // of the original
   SurfaceFootprint footprint;   // of the original, in its units (prepare_asset only; not serialised)
   int levels = 0;               // subdivision levels of the decoded copy
+  int refinements = 0;          // steps taken for min_mark_vertices (prepare_asset only; not serialised)
   CompressResult compression;   // statistics of the fit (prepare_asset only; not serialised)
 };
+
+// Refines `control` by whole subdivision steps while it has fewer than min_vertices vertices
+// and the next step stays within max_vertices; returns the steps taken. Creases and corners are
+// carried, so the limit surface is unchanged.
+int refine_for_mark(Mesh& control, int min_vertices, int max_vertices);
 
 // Compresses the part (throws InputError(source, reason) when it cannot be compressed or the
 // control polyhedron exceeds the basis cap; std::invalid_argument for a budget above the cap), normalises the control polyhedron and computes its

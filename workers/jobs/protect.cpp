@@ -1,7 +1,11 @@
 #include "jobs/protect.h"
 
+#include <cmath>
+#include <stdexcept>
+
 #include "codec/stream.h"
 #include "jobs/payload.h"
+#include "meshio/normalize.h"
 #include "subdivision/decompress.h"
 
 namespace mm::jobs {
@@ -29,6 +33,23 @@ CopyFiles make_copy_files(const PreparedAsset& asset, const Mesh& marked_control
   f.decoded = asset.levels > 0 ? decompress_to_level(quantised, asset.levels) : quantised;
   if (triangles_only) f.decoded = triangulate(f.decoded);
   return f;
+}
+
+MarkCost mark_cost(const PreparedAsset& asset, const Mesh& decoded) {
+  Mesh unmarked = asset.control;
+  undo(asset.normalization, unmarked.points);
+  if (asset.levels > 0) unmarked = decompress_to_level(unmarked, asset.levels);
+  if (unmarked.num_vertices() != decoded.num_vertices())
+    throw std::invalid_argument("mark cost: the decoded copy has " + std::to_string(decoded.num_vertices()) +
+                                " vertices, the asset's refined mesh " + std::to_string(unmarked.num_vertices()));
+  const double diagonal = (unmarked.points.colwise().maxCoeff() - unmarked.points.colwise().minCoeff()).norm();
+  const Eigen::VectorXd moved = (decoded.points - unmarked.points).rowwise().norm();
+  MarkCost c;
+  if (diagonal > 0 && moved.size() > 0) {
+    c.max = moved.maxCoeff() / diagonal;
+    c.rms = std::sqrt(moved.squaredNorm() / static_cast<double>(moved.size())) / diagonal;
+  }
+  return c;
 }
 
 int coefficients_per_bit(const PreparedAsset& asset, int message_bits) {

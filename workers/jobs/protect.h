@@ -50,4 +50,15 @@ struct CopyFiles {
 CopyFiles make_copy_files(const PreparedAsset& asset, const Mesh& marked_control,
                           const StreamSettings& stream, bool triangles_only);
 
+// The mark's own cost on the surface a customer sees: how far the copy's decoded vertices lie
+// from the same vertices of the unmarked polyhedron refined at asset.levels, over the diagonal
+// of the unmarked decoded part. `max` bounds the Hausdorff distance between the two surfaces
+// (vertex to corresponding vertex); quantisation of the stream is included.
+struct MarkCost {
+  double max = 0, rms = 0;
+};
+// `decoded` is CopyFiles::decoded (triangulated or not). Throws std::invalid_argument when its
+// vertices do not correspond to the asset's refined vertices.
+MarkCost mark_cost(const PreparedAsset& asset, const Mesh& decoded);
+
 }  // namespace mm::jobs
