@@ -7,6 +7,7 @@
 #include <chrono>
 #include <filesystem>
 #include <thread>
+#include <unordered_map>
 
 namespace mm::store::sql {
 namespace {
@@ -71,7 +72,42 @@ bool Db::checkpoint() {
   return rc == SQLITE_OK;
 }
 
-Db::Db(const std::string& path, int busy_timeout_ms) : path_(path), busy_timeout_ms_(busy_timeout_ms) {
+namespace {
+// One writer turn per database file in this process, shared by its connections.
+std::shared_ptr<std::timed_mutex> writer_turn(const std::string& path) {
+  static std::mutex m;
+  static std::unordered_map<std::string, std::weak_ptr<std::timed_mutex>> turns;
+  std::error_code ec;
+  std::string key = std::filesystem::weakly_canonical(std::filesystem::absolute(path), ec).string();
+  if (ec) key = path;
+  std::lock_guard<std::mutex> l(m);
+  auto& w = turns[key];
+  auto t = w.lock();
+  if (!t) w = t = std::make_shared<std::timed_mutex>();
+  return t;
+}
+}  // namespace
+
+bool Db::lock_writer() { return writer_->try_lock_for(std::chrono::milliseconds(busy_timeout_ms_)); }
+void Db::unlock_writer() { writer_->unlock(); }
+
+sqlite3_stmt* Db::take_statement(const char* sql) {
+  auto it = statements_.find(sql);
+  if (it == statements_.end()) return nullptr;
+  sqlite3_stmt* st = it->second;
+  statements_.erase(it);  // in use: a nested Stmt of the same text prepares its own
+  return st;
+}
+
+void Db::return_statement(const char* sql, sqlite3_stmt* st) {
+  sqlite3_reset(st);
+  sqlite3_clear_bindings(st);
+  // Bounded: statements whose text varies (lists with filters) do not pile up.
+  if (statements_.size() >= 64 || !statements_.emplace(sql, st).second) sqlite3_finalize(st);
+}
+
+Db::Db(const std::string& path, int busy_timeout_ms)
+    : writer_(writer_turn(path)), path_(path), busy_timeout_ms_(busy_timeout_ms) {
   require_local_filesystem(path);
   int rc = sqlite3_open_v2(path.c_str(), &db_,
                            SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
@@ -87,6 +123,7 @@ Db::Db(const std::string& path, int busy_timeout_ms) : path_(path), busy_timeout
 }
 
 Db::~Db() {
+  for (auto& [sql, st] : statements_) sqlite3_finalize(st);
   if (guard_) sqlite3_close_v2(guard_);
   if (db_) sqlite3_close_v2(db_);
 }
@@ -117,10 +154,13 @@ void Db::exec_retrying_busy(const std::string& sql, const char* what) {
 }
 
 Stmt::Stmt(Db& db, const char* sql) : db_(db), sql_(sql) {
-  if (sqlite3_prepare_v2(db.get(), sql, -1, &st_, nullptr) != SQLITE_OK)
+  st_ = db.take_statement(sql);
+  if (!st_ && sqlite3_prepare_v3(db.get(), sql, -1, SQLITE_PREPARE_PERSISTENT, &st_, nullptr) != SQLITE_OK)
     fail(db.get(), "preparing statement");
 }
-Stmt::~Stmt() { sqlite3_finalize(st_); }
+Stmt::~Stmt() {
+  if (st_) db_.return_statement(sql_.c_str(), st_);
+}
 
 Stmt& Stmt::bind(int i, std::int64_t v) {
   if (sqlite3_bind_int64(st_, i, v) != SQLITE_OK) fail(db_.get(), "bind");
@@ -180,10 +220,20 @@ std::optional<double> Stmt::opt_f64(int c) const {
 }
 
 Tx::Tx(Db& db, bool immediate) : db_(db), immediate_(immediate) {
-  db_.exec(immediate ? "BEGIN IMMEDIATE" : "BEGIN", "begin transaction");
+  if (immediate) {
+    if (!db_.lock_writer()) throw StoreError("begin transaction: database is locked (by this process)");
+    writer_ = true;
+  }
+  try {
+    db_.exec(immediate ? "BEGIN IMMEDIATE" : "BEGIN", "begin transaction");
+  } catch (...) {
+    if (writer_) db_.unlock_writer();
+    throw;
+  }
 }
 Tx::~Tx() {
   if (!done_) sqlite3_exec(db_.get(), "ROLLBACK", nullptr, nullptr, nullptr);
+  if (writer_) db_.unlock_writer();
 }
 void Tx::commit() {
   // Statements read only partly (a RETURNING row, a single-row SELECT) still count as "in
@@ -194,6 +244,10 @@ void Tx::commit() {
     throw StoreError("commit: disk I/O error (injected: MESHMARK_FAIL_DB_WRITE)");
   db_.exec("COMMIT", "commit");
   done_ = true;
+  if (writer_) {
+    writer_ = false;
+    db_.unlock_writer();
+  }
 }
 
 }  // namespace mm::store::sql

@@ -3,8 +3,11 @@
 #include <sqlite3.h>
 
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "store/store.h"
@@ -39,9 +42,20 @@ class Db {
   // A passive checkpoint under the write lock; false when the lock was not free within 200 ms
   // (the next commit tries again).
   bool checkpoint();
+  // Write transactions of one process on one database file take turns here before SQLite's
+  // lock: threads then queue without SQLite's busy handler, which sleeps for milliseconds.
+  // false when the busy timeout passed first.
+  bool lock_writer();
+  void unlock_writer();
+
+  // Prepared statements kept for reuse, by SQL text (Stmt takes and returns them).
+  sqlite3_stmt* take_statement(const char* sql);
+  void return_statement(const char* sql, sqlite3_stmt* st);
 
  private:
   int exec_once(const std::string& sql, std::string& msg);
+  std::shared_ptr<std::timed_mutex> writer_;
+  std::unordered_map<std::string, sqlite3_stmt*> statements_;
   sqlite3* db_ = nullptr;
   sqlite3* guard_ = nullptr;  // holds the write lock during checkpoint()
   std::string path_;
@@ -85,7 +99,8 @@ class Stmt {
   std::string sql_;
 };
 
-// BEGIN IMMEDIATE ... COMMIT; rolls back when destroyed without commit().
+// BEGIN IMMEDIATE ... COMMIT (holding the process's writer turn, Db::lock_writer); rolls back
+// when destroyed without commit().
 class Tx {
  public:
   explicit Tx(Db& db, bool immediate = true);
@@ -96,6 +111,7 @@ class Tx {
   Db& db_;
   bool immediate_ = true;  // a write transaction
   bool done_ = false;
+  bool writer_ = false;  // holds db_'s writer turn
 };
 
 }  // namespace mm::store::sql
