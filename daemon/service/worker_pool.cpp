@@ -22,6 +22,13 @@ WorkerPool::WorkerPool(int workers, StoreFactory stores, HandlerMap handlers,
       id_prefix_(std::move(id_prefix)),
       exit_when_empty_(exit_when_empty) {}
 
+struct WorkerPool::PendingCompletion {
+  store::Job job;
+  std::string worker_id;
+  store::JobRecords records;
+  double seconds = 0;
+};
+
 WorkerPool::~WorkerPool() {
   stop_claiming();
   {
@@ -32,13 +39,68 @@ WorkerPool::~WorkerPool() {
   for (auto& t : threads_)
     if (t.joinable()) t.join();
   if (heartbeat_.joinable()) heartbeat_.join();
+  stop_completer();
 }
 
 void WorkerPool::start() {
   hb_store_ = stores_();
+  claim_store_ = stores_();
+  completer_store_ = stores_();
+  completer_ = std::thread([this] { completer_main(); });
   alive_ = workers_;
   for (int i = 0; i < workers_; ++i) threads_.emplace_back([this, i] { worker_main(i); });
   heartbeat_ = std::thread([this] { heartbeat_main(); });
+}
+
+void WorkerPool::stop_completer() {
+  {
+    std::lock_guard<std::mutex> l(completer_m_);
+    completer_stop_ = true;
+  }
+  completer_cv_.notify_all();
+  if (completer_.joinable()) completer_.join();
+}
+
+// Takes everything that gathered while the last commit ran, commits it at once, then logs and
+// counts each outcome.
+void WorkerPool::completer_main() {
+  for (;;) {
+    std::vector<std::unique_ptr<PendingCompletion>> batch;
+    {
+      std::unique_lock<std::mutex> l(completer_m_);
+      completer_cv_.wait(l, [this] { return completer_stop_ || !pending_.empty(); });
+      if (pending_.empty()) return;  // stopped, nothing left
+      batch.swap(pending_);
+    }
+    completer_cv_.notify_all();  // room again for workers held back
+    std::vector<store::Completion> items;
+    for (const auto& p : batch) items.push_back({p->job.id, p->worker_id, &p->records});
+    std::vector<store::CompletionOutcome> outcomes(batch.size());
+    try {
+      outcomes = completer_store_->complete_batch(items);
+    } catch (const std::exception&) {  // the commit failed: none of them is done
+      for (auto& o : outcomes) o.error = std::current_exception();
+    }
+    for (std::size_t i = 0; i < batch.size(); ++i) record_completion(*batch[i], outcomes[i]);
+    {
+      std::lock_guard<std::mutex> l(m_);
+      in_flight_ -= static_cast<int>(batch.size());
+    }
+    done_cv_.notify_all();
+  }
+}
+
+void WorkerPool::submit_completion(std::unique_ptr<PendingCompletion> p) {
+  {
+    std::lock_guard<std::mutex> l(m_);
+    ++in_flight_;
+  }
+  std::unique_lock<std::mutex> l(completer_m_);
+  // Bounded: a worker waits while a few batches' worth are still waiting for their commit.
+  completer_cv_.wait(l, [this] { return pending_.size() < static_cast<std::size_t>(4 * workers_ + 16); });
+  pending_.push_back(std::move(p));
+  l.unlock();
+  completer_cv_.notify_all();
 }
 
 void WorkerPool::notify() {
@@ -56,7 +118,7 @@ void WorkerPool::stop_claiming() {
 
 bool WorkerPool::wait_idle(std::chrono::steady_clock::time_point deadline) {
   std::unique_lock<std::mutex> l(m_);
-  return done_cv_.wait_until(l, deadline, [this] { return alive_ == 0; });
+  return done_cv_.wait_until(l, deadline, [this] { return alive_ == 0 && in_flight_ == 0; });
 }
 
 int WorkerPool::release_running() {
@@ -89,6 +151,7 @@ void WorkerPool::join() {
   }
   cv_.notify_all();
   if (heartbeat_.joinable()) heartbeat_.join();
+  stop_completer();
 }
 
 PoolStats WorkerPool::stats() const {
@@ -145,6 +208,46 @@ int remove_outputs(const store::JobRecords& records) {
 
 }  // namespace
 
+// The job was no longer ours to complete or fail. Cancelled between its last step and its
+// completion: nothing was issued, so the files it wrote go too.
+std::string WorkerPool::lease_lost_outcome(store::Store& st, const store::Job& job, const store::JobRecords& records,
+                                           const store::LeaseLost& e) {
+  const auto now = st.get_job(job.id);
+  if (now && now->state == store::JobState::cancelled) {
+    const int removed = remove_outputs(records);
+    spdlog::info("job {} {} cancelled before it completed; {} output file(s) removed", job.id, job.kind, removed);
+    return "cancelled";
+  }
+  spdlog::warn("job {}: result dropped, lease lost: {}", job.id, e.what());
+  return "lease_lost";
+}
+
+void WorkerPool::count_outcome(const std::string& outcome) {
+  if (outcome == "completed") ++stats_.completed;
+  else if (outcome == "discarded") ++stats_.discarded;
+  else if (outcome == "lease_lost") ++stats_.lease_lost;
+  else if (outcome == "cancelled") ++stats_.cancelled;
+  else ++stats_.failed;
+}
+
+void WorkerPool::record_completion(const PendingCompletion& p, const store::CompletionOutcome& o) {
+  std::string outcome = "completed";
+  if (!o.error) {
+    spdlog::info("job {} {} completed in {:.2f} s (attempt {})", p.job.id, p.job.kind, p.seconds, p.job.attempt);
+  } else {
+    try {
+      std::rethrow_exception(o.error);
+    } catch (const store::LeaseLost& e) {
+      outcome = lease_lost_outcome(*completer_store_, p.job, p.records, e);
+    } catch (const std::exception& e) {
+      outcome = "failed";
+      spdlog::error("job {}: cannot record outcome: {}", p.job.id, e.what());
+    }
+  }
+  std::lock_guard<std::mutex> l(m_);
+  count_outcome(outcome);
+}
+
 void WorkerPool::worker_main(int index) {
   const std::string worker_id = id_prefix_ + ":w" + std::to_string(index);
   std::unique_ptr<store::Store> st;
@@ -162,7 +265,7 @@ void WorkerPool::worker_main(int index) {
     auto cfg = config_();
     std::optional<store::Job> job;
     try {
-      job = st->claim(worker_id, store::Millis(cfg->lease_seconds) * 1000);
+      job = claim_store_->claim(worker_id, store::Millis(cfg->lease_seconds) * 1000);
     } catch (const std::exception& e) {
       spdlog::warn("{}: claim failed: {}", worker_id, e.what());
     }
@@ -171,7 +274,13 @@ void WorkerPool::worker_main(int index) {
         return_freed_memory();
         trim_pending = false;
       }
-      if (exit_when_empty_) break;
+      if (exit_when_empty_) {
+        // A completion still in flight may enqueue a follow-up job: look once more after it.
+        std::unique_lock<std::mutex> l(m_);
+        if (in_flight_ == 0) break;
+        done_cv_.wait(l, [this] { return in_flight_ == 0; });
+        continue;
+      }
       std::unique_lock<std::mutex> l(m_);
       auto seen = wakeups_;
       cv_.wait_for(l, std::chrono::milliseconds(cfg->poll_interval_ms),
@@ -217,15 +326,24 @@ void WorkerPool::worker_main(int index) {
     // after every one of a burst of tiny jobs, which are trimmed once the worker is idle.
     trim_pending = secs < 0.1;
     if (!trim_pending) return_freed_memory();
+    if (!cancelled && error.empty()) {  // recorded by the completer; the worker goes on
+      {
+        std::lock_guard<std::mutex> l(m_);
+        running_.erase(worker_id);
+      }
+      auto p = std::make_unique<PendingCompletion>();
+      p->job = *job;
+      p->worker_id = worker_id;
+      p->records = std::move(records);
+      p->seconds = secs;
+      submit_completion(std::move(p));
+      continue;
+    }
     std::string outcome;
     try {
       if (cancelled) {
         outcome = "cancelled";
         spdlog::info("job {} {} stopped after {:.2f} s: {}", job->id, job->kind, secs, error);
-      } else if (error.empty()) {
-        st->complete(job->id, worker_id, records);
-        outcome = "completed";
-        spdlog::info("job {} {} completed in {:.2f} s (attempt {})", job->id, job->kind, secs, job->attempt);
       } else {
         auto state = st->fail(job->id, worker_id, error, !permanent);
         outcome = state == store::JobState::discarded ? "discarded" : "failed";
@@ -240,28 +358,14 @@ void WorkerPool::worker_main(int index) {
         }
       }
     } catch (const store::LeaseLost& e) {
-      const auto now = st->get_job(job->id);
-      if (now && now->state == store::JobState::cancelled) {
-        // Cancelled between its last step and completion: nothing was issued, so the files it
-        // wrote go too.
-        outcome = "cancelled";
-        const int removed = remove_outputs(records);
-        spdlog::info("job {} {} cancelled before it completed; {} output file(s) removed", job->id, job->kind, removed);
-      } else {
-        outcome = "lease_lost";
-        spdlog::warn("job {}: result dropped, lease lost: {}", job->id, e.what());
-      }
+      outcome = lease_lost_outcome(*st, *job, records, e);
     } catch (const std::exception& e) {
       outcome = "failed";
       spdlog::error("job {}: cannot record outcome: {}", job->id, e.what());
     }
     std::lock_guard<std::mutex> l(m_);
     running_.erase(worker_id);
-    if (outcome == "completed") ++stats_.completed;
-    else if (outcome == "discarded") ++stats_.discarded;
-    else if (outcome == "lease_lost") ++stats_.lease_lost;
-    else if (outcome == "cancelled") ++stats_.cancelled;
-    else ++stats_.failed;
+    count_outcome(outcome);
   }
   std::lock_guard<std::mutex> l(m_);
   --alive_;

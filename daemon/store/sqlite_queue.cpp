@@ -67,6 +67,34 @@ CompleteResult SqliteStore::complete(std::int64_t job_id, const std::string& wor
   require_json(r.result_json, "job result");
   std::lock_guard<std::mutex> l(m_);
   Tx tx(db_);
+  CompleteResult out = complete_in_tx(job_id, worker_id, r);
+  fault("complete.before_commit");
+  tx.commit();
+  return out;
+}
+
+std::vector<CompletionOutcome> SqliteStore::complete_batch(const std::vector<Completion>& batch) {
+  std::vector<CompletionOutcome> out(batch.size());
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  for (std::size_t i = 0; i < batch.size(); ++i) {
+    db_.exec("SAVEPOINT completion", "complete");
+    try {
+      require_json(batch[i].records->result_json, "job result");
+      out[i].result = complete_in_tx(batch[i].job_id, batch[i].worker_id, *batch[i].records);
+      db_.exec("RELEASE completion", "complete");
+    } catch (const std::exception&) {
+      out[i].error = std::current_exception();
+      db_.exec("ROLLBACK TO completion", "complete");
+      db_.exec("RELEASE completion", "complete");
+    }
+  }
+  fault("complete.before_commit");
+  tx.commit();
+  return out;
+}
+
+CompleteResult SqliteStore::complete_in_tx(std::int64_t job_id, const std::string& worker_id, const JobRecords& r) {
   Millis t = now();
   Stmt u(db_,
          "UPDATE jobs SET state = 'completed', finished_at = ?, lease_until = NULL, result_json = ? "
@@ -86,8 +114,6 @@ CompleteResult SqliteStore::complete(std::int64_t job_id, const std::string& wor
   for (const NewAudit& a : r.audit) insert_audit(a);
   for (const JobSpec& f : r.follow_ups) insert_job(f, worker_id);
   insert_audit({worker_id, "job.complete", "job:" + std::to_string(job_id), "{}"});
-  fault("complete.before_commit");
-  tx.commit();
   return out;
 }
 

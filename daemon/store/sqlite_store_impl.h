@@ -227,6 +227,7 @@ class SqliteStore final : public Store {
   void heartbeat(std::int64_t job_id, const std::string& worker_id, Millis lease) override;
 
   CompleteResult complete(std::int64_t job_id, const std::string& worker_id, const JobRecords& r) override;
+  std::vector<CompletionOutcome> complete_batch(const std::vector<Completion>& batch) override;
 
   JobState fail(std::int64_t job_id, const std::string& worker_id, const std::string& error, bool retryable) override;
 
@@ -281,6 +282,7 @@ class SqliteStore final : public Store {
   }
 
   EnqueueResult insert_job(const JobSpec& spec, const std::string& actor);  // inside a transaction
+  CompleteResult complete_in_tx(std::int64_t job_id, const std::string& worker_id, const JobRecords& r);
 
   LeaseLost lease_lost(std::int64_t job_id, const std::string& worker_id) {
     auto j = job_by_id(job_id);

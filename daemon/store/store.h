@@ -22,6 +22,7 @@
 // tests can step it.
 #pragma once
 #include <cstdint>
+#include <exception>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -221,6 +222,17 @@ struct CompleteResult {
   int copies_already_existed = 0;
 };
 
+// One completion of a batch (Store::complete_batch) and what became of it.
+struct Completion {
+  std::int64_t job_id = 0;
+  std::string worker_id;
+  const JobRecords* records = nullptr;
+};
+struct CompletionOutcome {
+  CompleteResult result;
+  std::exception_ptr error;  // LeaseLost or StoreError of this completion alone; null when done
+};
+
 struct QueueCounts {
   std::int64_t available = 0, running = 0, completed = 0, retryable = 0, discarded = 0,
                cancelled = 0;
@@ -305,6 +317,21 @@ class Store {
   // is written).
   virtual CompleteResult complete(std::int64_t job_id, const std::string& worker_id,
                                   const JobRecords& records) = 0;
+  // Several complete()s in one durable commit (group commit: one fsync for the batch). Each
+  // completion is all or nothing on its own: one that fails (LeaseLost, a record refused) is
+  // rolled back alone and reported in its outcome; the others still commit. A failure of the
+  // commit itself throws, and none is done. This default completes them one by one.
+  virtual std::vector<CompletionOutcome> complete_batch(const std::vector<Completion>& batch) {
+    std::vector<CompletionOutcome> out(batch.size());
+    for (std::size_t i = 0; i < batch.size(); ++i) {
+      try {
+        out[i].result = complete(batch[i].job_id, batch[i].worker_id, *batch[i].records);
+      } catch (const std::exception&) {
+        out[i].error = std::current_exception();
+      }
+    }
+    return out;
+  }
   // running -> retryable (after backoff) or discarded; returns the new state. LeaseLost if not held.
   virtual JobState fail(std::int64_t job_id, const std::string& worker_id, const std::string& error,
                         bool retryable = true) = 0;

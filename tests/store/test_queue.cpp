@@ -52,6 +52,47 @@ TEST(Queue, EnqueueClaimComplete) {
   EXPECT_FALSE(s->claim("w1", 1000));
 }
 
+// A batch commits together, but each completion is all or nothing on its own: one whose lease
+// is gone (or whose result is not JSON) is rolled back alone and reported; the others complete.
+TEST(Queue, CompleteBatchCommitsTogetherAndFailsEachCompletionAlone) {
+  TempDir dir;
+  StepClock clock;
+  auto s = store::open_sqlite_store(options(dir, &clock));
+  std::vector<std::int64_t> ids;
+  for (int i = 0; i < 4; ++i) {
+    s->enqueue(spec());
+    ids.push_back(s->claim("w" + std::to_string(i), 30'000)->id);
+  }
+  const std::size_t audit_before = s->list_audit(100000).size();
+  store::JobRecords ok, follow, bad;
+  ok.result_json = R"({"ok":true})";
+  follow.result_json = "{}";
+  follow.follow_ups.push_back(spec("later"));
+  bad.result_json = "not json";
+  std::vector<store::Completion> batch = {{ids[0], "w0", &ok},
+                                          {ids[1], "someone else", &follow},  // not its lease
+                                          {ids[2], "w2", &follow},
+                                          {ids[3], "w3", &bad}};
+  auto out = s->complete_batch(batch);
+  ASSERT_EQ(out.size(), 4u);
+  EXPECT_FALSE(out[0].error);
+  EXPECT_FALSE(out[2].error);
+  ASSERT_TRUE(out[1].error);
+  EXPECT_THROW(std::rethrow_exception(out[1].error), store::LeaseLost);
+  ASSERT_TRUE(out[3].error);
+  EXPECT_THROW(std::rethrow_exception(out[3].error), store::StoreError);
+  EXPECT_EQ(s->get_job(ids[0])->state, JobState::completed);
+  EXPECT_EQ(s->get_job(ids[0])->result_json, R"({"ok":true})");
+  EXPECT_EQ(s->get_job(ids[1])->state, JobState::running);
+  EXPECT_EQ(s->get_job(ids[2])->state, JobState::completed);
+  EXPECT_EQ(s->get_job(ids[3])->state, JobState::running);
+  // One follow-up (of the completion that went through) and its audit entries only.
+  store::JobFilter f;
+  f.kind = "later";
+  EXPECT_EQ(s->list_jobs(f).size(), 1u);
+  EXPECT_EQ(s->list_audit(100000).size(), audit_before + 3);  // 2 x job.complete + 1 x job.enqueue
+}
+
 TEST(Queue, RejectsBadSpecs) {
   TempDir dir;
   auto s = store::open_sqlite_store(options(dir));
