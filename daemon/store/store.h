@@ -320,18 +320,8 @@ class Store {
   // Several complete()s in one durable commit (group commit: one fsync for the batch). Each
   // completion is all or nothing on its own: one that fails (LeaseLost, a record refused) is
   // rolled back alone and reported in its outcome; the others still commit. A failure of the
-  // commit itself throws, and none is done. This default completes them one by one.
-  virtual std::vector<CompletionOutcome> complete_batch(const std::vector<Completion>& batch) {
-    std::vector<CompletionOutcome> out(batch.size());
-    for (std::size_t i = 0; i < batch.size(); ++i) {
-      try {
-        out[i].result = complete(batch[i].job_id, batch[i].worker_id, *batch[i].records);
-      } catch (const std::exception&) {
-        out[i].error = std::current_exception();
-      }
-    }
-    return out;
-  }
+  // commit itself throws, and none is done.
+  virtual std::vector<CompletionOutcome> complete_batch(const std::vector<Completion>& batch) = 0;
   // running -> retryable (after backoff) or discarded; returns the new state. LeaseLost if not held.
   virtual JobState fail(std::int64_t job_id, const std::string& worker_id, const std::string& error,
                         bool retryable = true) = 0;

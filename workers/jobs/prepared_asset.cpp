@@ -94,7 +94,9 @@ std::string fallback_key(const std::vector<double>& angles) {
 std::string PrepareParams::key() const {
   // v2: control polyhedron = compress(original, compression), dense Kirchhoff basis. Every
   // compression option changes the polyhedron, so all are in the key (doubles in shortest
-  // round-trip form); max_control_vertices only refuses and is not. "verify=dense": rounds meet
+  // round-trip form); max_control_vertices is not: it refuses, and it can stop a min_mark_vertices
+  // step only when set below a few times min_mark_vertices (a row prepared under another cap is
+  // then reused as it is). "verify=dense": rounds meet
   // the tolerance by the quality code's dense measurement (as `meshmark compress`).
   // rounds_schedule_key() and fit_sampling_key() spell out compress.cpp's constants, so a change
   // to them fits assets again; rows under other keys stay readable for the copies issued from
