@@ -5,6 +5,7 @@
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <limits>
 #include <optional>
 #include <array>
 #include <cmath>
@@ -112,6 +113,13 @@ Points solve_rows(const SpMat& A, const Points& p, const Points& prior) {
 double rms_rows(const Points& a, const Points& b) {
   if (a.rows() == 0) return 0;
   return std::sqrt((a - b).rowwise().squaredNorm().mean());
+}
+
+// The rows `rows` of p, in that order.
+Points select_rows(const Points& p, const std::vector<int>& rows) {
+  Points out(static_cast<Eigen::Index>(rows.size()), 3);
+  for (size_t k = 0; k < rows.size(); ++k) out.row(static_cast<Eigen::Index>(k)) = p.row(rows[k]);
+  return out;
 }
 
 struct Matching {
@@ -363,9 +371,12 @@ bool in_same_frame(const Points& original, const Points& suspect, double diagona
 }
 
 // `edges`: given for a suspect with as many vertices as the level (pairs then also grow along
-// the edges).
+// the edges). `exact` > 0: the hypothesis holds only if its pairs end within that residual, so
+// the rounds stop once one fails to halve a residual still above it (a remesh pairs one
+// vertex in ten more per round at an unchanged residual, and the rounds were a fifth of its
+// detection; a real piece falls to float precision in its second round).
 Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h, const Points& suspect,
-                             Matching m, int rounds, const EdgesOfBoth* edges = nullptr) {
+                             Matching m, int rounds, const EdgesOfBoth* edges = nullptr, double exact = 0) {
   const LevelData& level = *h.level;
   const int l = h.l;
   Resynchronized r;
@@ -380,6 +391,7 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h
   std::vector<int> rows, kept_rows;
   Points p, kept_p;
   int previous = -1;
+  double previous_residual = std::numeric_limits<double>::infinity();
   for (int round = 0; round < rounds; ++round) {
     if (round > 0) {
       // The mark moves refined vertices by a fair fraction of their spacing, so pairs made with
@@ -416,13 +428,15 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h
     r.points = m.matched == nr ? h.solve(p) : solve_rows(h.rows_of(rows), p, ctx.control.points);
     if (l > 0 && pairs_in_line(h.apply(r.points), ctx.diagonal, rows, p, &kept_rows, &kept_p))
       r.points = solve_rows(h.rows_of(kept_rows), kept_p, ctx.control.points);
+    if (exact > 0) {
+      const double residual = rms_rows(select_rows(h.apply(r.points), rows), p) / ctx.diagonal;
+      if (residual > exact && residual > 0.5 * previous_residual) break;
+      previous_residual = residual;
+    }
   }
   r.matched_fraction = static_cast<double>(m.matched) / nr;
   // Level 0: what separates the suspect from the original (mark, quantisation, noise).
-  const Points refined = l == 0 ? level.points : h.apply(r.points);
-  Points fitted(m.matched, 3);
-  for (size_t k = 0; k < rows.size(); ++k) fitted.row(static_cast<Eigen::Index>(k)) = refined.row(rows[k]);
-  r.residual_rms = rms_rows(fitted, p) / ctx.diagonal;
+  r.residual_rms = rms_rows(select_rows(l == 0 ? level.points : h.apply(r.points), rows), p) / ctx.diagonal;
   return r;
 }
 
@@ -468,7 +482,8 @@ std::optional<Resynchronized> piece_of_copy(const ResyncContext::Impl& ctx, cons
   unmoved.align = false;
   const Matching m = match_vertices(level, suspect.points, unmoved);
   if (m.matched < o.min_start_fraction * ns) return std::nullopt;
-  Resynchronized r = from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m, o.matching_rounds);
+  Resynchronized r = from_matching(ctx, Hypothesis{&level, nullptr, l, false}, suspect.points, m, o.matching_rounds,
+                                   nullptr, kPieceResidual);
   const double paired = r.matched_fraction * nr / ns;
   if (paired < o.min_matched_fraction || !(r.residual_rms <= kPieceResidual)) return std::nullopt;
   r.matched_fraction = paired;
