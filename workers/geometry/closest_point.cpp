@@ -233,6 +233,15 @@ TriangleHit TriangleIndex::closest(const Eigen::Vector3d& q) const {
   return impl_->hit(q, pt, it);
 }
 
+TriangleHit HintedClosest::closest(const Eigen::Vector3d& q, Eigen::Index number) {
+  const auto k = static_cast<std::size_t>(number);
+  if (k >= hints_.size()) hints_.resize(k + 1);
+  TriangleHint& hint = hints_[k];
+  const TriangleHit hit = hint.triangle < 0 ? index_.closest(q) : index_.closest(q, hint);
+  hint = TriangleHint{hit.triangle, hit.point};
+  return hit;
+}
+
 TriangleHit TriangleIndex::closest(const Eigen::Vector3d& q, const TriangleHint& hint) const {
   if (hint.triangle < 0 || hint.triangle >= static_cast<int>(impl_->tree_of.size()) ||
       impl_->tree_of[hint.triangle] < 0)

@@ -50,6 +50,18 @@ class TriangleIndex {
   std::vector<std::array<int, 3>> triangles_;
 };
 
+// Closest points for numbered queries that move little between calls (ICP rounds): each number
+// remembers its last answer as the next query's hint. Answers are those of TriangleIndex::closest.
+class HintedClosest {
+ public:
+  explicit HintedClosest(const TriangleIndex& index) : index_(index) {}
+  TriangleHit closest(const Eigen::Vector3d& q, Eigen::Index number);
+
+ private:
+  const TriangleIndex& index_;
+  std::vector<TriangleHint> hints_;
+};
+
 // Fan triangulation of every face (triangles and quads alike), as index triples.
 std::vector<std::array<int, 3>> triangle_list(const Mesh& mesh);
 

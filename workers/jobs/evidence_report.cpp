@@ -117,7 +117,8 @@ std::string odds_in_words(double neg_log10_p) {
 
 RegisteredSuspect register_to_original(const Mesh& original, const Mesh& suspect) {
   const TriangleIndex index(original.points, triangle_list(original));
-  const ClosestPoint closest = [&index](const Eigen::Vector3d& q) { return index.closest(q).point; };
+  HintedClosest hinted(index);
+  const ClosestPoint closest = [&hinted](const Eigen::Vector3d& q, Eigen::Index row) { return hinted.closest(q, row).point; };
   const Points fixed = rows_of(sample_surface(original, 4000, 1, false));
   const Points moving_samples = rows_of(sample_surface(suspect, 4000, 2, false));
   const IcpResult r = align_similarity(strided_rows(suspect.points, 20000), moving_samples, fixed, closest);

@@ -136,7 +136,7 @@ IcpResult icp_similarity(const Points& moving, const ClosestPoint& closest, cons
     const Points cur = r.transform.apply(moving);
     for (Eigen::Index i = 0; i < n; ++i) {
       const Eigen::Vector3d q = cur.row(i).transpose();
-      const Eigen::Vector3d c = closest(q);
+      const Eigen::Vector3d c = closest(q, i);
       src.row(i) = moving.row(i);
       dst.row(i) = c.transpose();
       d2[i] = (c - q).squaredNorm();

@@ -43,8 +43,9 @@ Similarity fit_similarity(const Points& src, const Points& dst, const Eigen::Vec
 // std::invalid_argument for a row count mismatch or a mesh without edges.
 Similarity fit_similarity_preserving_mark(const Mesh& original, const Points& moved);
 
-// Closest point of the fixed shape (a point set or a surface) to a query.
-using ClosestPoint = std::function<Eigen::Vector3d(const Eigen::Vector3d&)>;
+// Closest point of the fixed shape (a point set or a surface) to a query; `row` is the moving
+// point's row, so a surface query can start from that row's previous answer (ICP moves it little).
+using ClosestPoint = std::function<Eigen::Vector3d(const Eigen::Vector3d& q, Eigen::Index row)>;
 
 struct IcpOptions {
   int iterations = 40;         // correspondence / fit rounds of the final refinement

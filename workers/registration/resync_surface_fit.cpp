@@ -41,8 +41,8 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
 
   const FitSurface& fit = ctx.fit();
   if (o.align) {
-    const TriangleIndex& tree = *fit.tree;
-    ClosestPoint closest = [&tree](const Eigen::Vector3d& q) { return tree.closest(q).point; };
+    HintedClosest hinted(*fit.tree);
+    const ClosestPoint closest = [&hinted](const Eigen::Vector3d& q, Eigen::Index row) { return hinted.closest(q, row).point; };
     const Points moving = sample_area(suspect.points, tris, o.alignment_samples, o.seed + 1);
     const Points fixed = strided(fit.samples, o.alignment_samples);
     r.to_control_frame = align_similarity(moving, moving, fixed, closest, o.icp).transform;
@@ -55,11 +55,12 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
     IcpOptions rigid = o.icp;
     rigid.keep_scale = true;
     const IcpResult in_frame = icp_similarity(moving, closest, Points(), Similarity(), rigid);
-    const IcpResult refined = icp_similarity(moving, closest, Points(), r.to_control_frame, rigid);
-    if (in_frame.rms <= kFrameTolerance * full)
+    if (in_frame.rms <= kFrameTolerance * full) {
       r.to_control_frame = in_frame.transform;
-    else if (refined.rms < kPartialGain * full)
-      r.to_control_frame = refined.transform;
+    } else {
+      const IcpResult refined = icp_similarity(moving, closest, Points(), r.to_control_frame, rigid);
+      if (refined.rms < kPartialGain * full) r.to_control_frame = refined.transform;
+    }
   }
   const Similarity& T = r.to_control_frame;
   const Similarity Tinv = T.inverse();

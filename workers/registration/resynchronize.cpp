@@ -277,7 +277,7 @@ Similarity turn_search(const LevelData& level, const Points& suspect, const Simi
 Matching match_vertices(const LevelData& level, const Points& suspect, const ResyncOptions& o) {
   Matching m;
   const PointTree& tree = *level.tree;
-  const ClosestPoint nearest_vertex = [&tree](const Eigen::Vector3d& q) {
+  const ClosestPoint nearest_vertex = [&tree](const Eigen::Vector3d& q, Eigen::Index) {
     return tree.point(tree.nearest(q));
   };
   if (o.align) {
