@@ -104,6 +104,7 @@ void add_compress_commands(CLI::App& app) {
       bool json = false;
       bool snap = true;
       bool fast = false;  // a protect job's compression: one angle, no coarsening, no stream search
+      bool best_effort = false;  // write the closest stream when the tolerance is not met
       // 45 and 55 besides the usual 35: a part with many edges between them (blade) fits with
       // fewer vertices when they are smooth. Parts whose crease network is the same at several
       // of them are fitted once per network.
@@ -163,6 +164,9 @@ void add_compress_commands(CLI::App& app) {
                   "fit the angles' crease networks on up to this many threads at once (default: one per "
                   "core; the stream is the same for any number)")
         ->check(CLI::Range(1, 256));
+    c->add_flag("--best-effort", a->best_effort,
+                "when the tolerance cannot be met within --max-vertices, write the closest stream and exit 0 "
+                "(default: exit 1 and write nothing)");
     c->add_flag("--json", a->json, "print the summary as JSON");
     c->callback([a, angle_option] {
       Mesh mesh = read_mesh(a->in);
@@ -220,10 +224,22 @@ void add_compress_commands(CLI::App& app) {
       }
       const std::vector<std::uint8_t>& bytes = s.bytes;
       const SurfaceDistance& d = s.distance;
-      write_stream_file(a->out, bytes);
       // Unmeasured (--fast), the stream was checked: it met both tolerances.
       const bool hausdorff_met = s.measured ? d.hausdorff_relative() <= a->o.tolerance : s.meets;
       const bool rms_met = a->rms_tolerance <= 0 || (s.measured ? d.rms_relative() <= a->rms_tolerance : s.meets);
+      if (!(hausdorff_met && rms_met) && !a->best_effort) {
+        std::string what = "the closest stream";
+        if (s.measured) {
+          what = "Hausdorff " + std::string(pct(d.hausdorff_relative()));
+          what += ", RMS " + std::string(pct(d.rms_relative())) + " of the diagonal";
+        }
+        throw InputError(a->in, what +
+                                    (hausdorff_met ? "" : missed_tolerance(r, options, angle_option->count() > 0)) +
+                                    (rms_met ? "" : " (RMS tolerance not reached)") +
+                                    "; no stream written (raise --max-vertices or --tolerance, or write the "
+                                    "closest stream with --best-effort)");
+      }
+      write_stream_file(a->out, bytes);
       nlohmann::json j{{"input", a->in},
                        {"output", a->out},
                        {"input_vertices", mesh.num_vertices()},

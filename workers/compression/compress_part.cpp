@@ -145,6 +145,15 @@ PartFits fit_part(const Mesh& part, const MeasuredSurface& measured, const PartO
     if (refusal) throw *refusal;
     throw InputError(source, "no crease angle could be fitted");
   }
+  if (!met() && options.extended_rounds > fit.max_rounds) {
+    const double angle = out.kept().angle;
+    const std::size_t before = out.fits.size();
+    fit.max_rounds = options.extended_rounds;
+    fit_all({angle}, 1, true);
+    if (out.fits.size() > before) {  // the extended fit replaces the angle's first one
+      out.fits.erase(std::find_if(out.fits.begin(), out.fits.end(), [&](const FitAtAngle& f) { return f.angle == angle; }));
+    }
+  }
   if (fit.coarsen) {
     FitAtAngle* pick = nullptr;
     for (auto& f : out.fits)

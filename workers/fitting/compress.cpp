@@ -283,7 +283,7 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
   std::vector<CompressCandidate>& fitting = st.fitting;
   // Vertex counts that failed (largest) and met the tolerance (smallest) so far: once a round
   // meets it, the rounds left bisect between the two, since the growth step may overshoot.
-  int failed_n = 0, fit_n = 0;
+  int failed_n = 0, fit_n = 0, at_budget = 0;
   WarmStart warm_start;
   // Whether the round after one with this error starts warm (kWarmWithin).
   const auto warm_after = [&o](double error) { return !o.coarsen && error <= kWarmWithin * o.tolerance; };
@@ -304,6 +304,8 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     Points steering;  // the better variant's fitted positions
     double rel = 0;
     const int n = control.mesh.num_vertices();
+    // The rounds' last: the round count, or the last of kRoundsAtBudget at the budget.
+    const bool last = round + 1 == o.max_rounds || (n >= o.max_vertices && at_budget + 1 >= kRoundsAtBudget);
     // `steer_only`: a coarse round's fit, which steers and is no result.
     const auto consider = [&](FitResult&& variant, bool steer_only) {
       const double error = variant.stats.hausdorff / variant.stats.diagonal;
@@ -371,7 +373,7 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
       fits = false;
       level = coarse.levels;
       // Within the tolerance, or the last round with no full-level fit yet to give as the result.
-      if (rel <= o.tolerance || (!have && round + 1 == o.max_rounds)) {
+      if (rel <= o.tolerance || (!have && last)) {
         const Points start = steering;
         result_error.clear();
         fits = fit_variants(start, warm_fit, &fit);
@@ -400,7 +402,8 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
       continue;
     }
     // At the budget, rounds only move vertices around (the importance keeps growing where the
-    // error stays), which helps unevenly: keep going to max_rounds and keep the best.
+    // error stays), which helps unevenly: a few of them, and the best is kept.
+    if (n >= o.max_vertices && ++at_budget >= kRoundsAtBudget) break;
     // Spend more vertices where the surface is still too far, and a few more overall.
     raise_importance(co.importance, result_error, o.tolerance * target.diagonal());
     // Grown from the smallest error so far: a round worse than an earlier one with fewer

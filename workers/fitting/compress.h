@@ -40,12 +40,18 @@ class CandidateCheck {
   std::function<bool(const Mesh&)> f_;
 };
 
+// Rounds fitted at the control vertex budget before the tolerance is given up (a round there
+// only moves vertices to where the error stays).
+constexpr int kRoundsAtBudget = 3;
+
 struct CompressOptions {
   double tolerance = 0.005;     // target symmetric Hausdorff distance / bounding box diagonal
   int max_vertices = 1000;      // control vertex budget
   int levels = 3;               // subdivision levels the fit is measured at
   double angle_degrees = 35.0;  // dihedral angle above which an edge is a crease
-  int max_rounds = 6;           // decimate-and-fit rounds at most
+  // Decimate-and-fit rounds at most; fewer once the tolerance is met (then a few bisection steps)
+  // or after kRoundsAtBudget rounds at max_vertices.
+  int max_rounds = 6;
   // Also fit each round's polyhedron with its crease-railed strips paired into quads
   // (fitting/rail_quads.h); both are candidates. Costs a second fit per round.
   bool rail_quads = true;
