@@ -190,7 +190,8 @@ Config parse_config(const std::string& text, const std::string& source, const st
     if (!w.is_object()) {
       c.error("watermark", "must be an object");
     } else {
-      c.known(w, "watermark.", {"method", "strength", "threshold", "message_bits", "max_vertices", "min_vertices"});
+      c.known(w, "watermark.",
+              {"method", "strength", "threshold", "message_bits", "max_vertices", "min_vertices", "share"});
       std::string method = "additive";
       c.string(w, "watermark.", "method", method, {"additive", "multiplicative"});
       cfg.watermark.params.method = method == "additive" ? Method::Additive : Method::Multiplicative;
@@ -199,6 +200,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
       c.integer(w, "watermark.", "message_bits", cfg.watermark.message_bits, 8, 64);
       c.integer(w, "watermark.", "max_vertices", cfg.max_vertices, 4, 20000);
       c.integer(w, "watermark.", "min_vertices", cfg.min_mark_vertices, 0, 20000);
+      c.number(w, "watermark.", "share", cfg.mark_share, 0, 0.9, true);
     }
   }
   if (j.contains("compression")) {
@@ -313,6 +315,7 @@ std::map<std::string, std::string> flatten(const Config& c) {
           {"watermark.message_bits", std::to_string(c.watermark.message_bits)},
           {"watermark.max_vertices", std::to_string(c.max_vertices)},
           {"watermark.min_vertices", std::to_string(c.min_mark_vertices)},
+          {"watermark.share", num(c.mark_share)},
           {"compression.tolerance", num(c.compression.tolerance)},
           {"compression.max_vertices", std::to_string(c.compression.max_vertices)},
           {"compression.levels", std::to_string(c.compression.levels)},

@@ -43,6 +43,9 @@ struct Config {
   jobs::WatermarkSettings watermark;
   int max_vertices = 4000;          // watermark.max_vertices: cap on the control polyhedron
   int min_mark_vertices = 200;      // watermark.min_vertices: smaller polyhedra are refined for the mark
+  // watermark.share: the part of compression.tolerance the mark may use; the fit gets the rest, so
+  // an issued copy lies within compression.tolerance of the original, mark included.
+  double mark_share = 0.5;
   CompressOptions compression;      // compression.{tolerance, max_vertices, levels, angle}
   int stream_bits = 16;             // compression.stream_bits: quantisation of the .mmc copies
   // compression.fallback_angles: tried in turn when compression.angle misses the tolerance

@@ -136,6 +136,9 @@ Mesh parse_input(const std::vector<std::uint8_t>& bytes, const std::string& name
   }
 }
 
+// A fraction of the diagonal as a percentage, for messages.
+std::string percent(double fraction) { return fmt::format("{:.3f} %", 100 * fraction); }
+
 struct LoadedAsset {
   store::Asset asset;
   store::Polyhedron row;
@@ -145,6 +148,8 @@ struct LoadedAsset {
 jobs::PrepareParams prepare_params(const Config& cfg) {
   jobs::PrepareParams pp;
   pp.compression = cfg.compression;
+  // The fit gets what the mark does not: a copy lies within compression.tolerance, mark included.
+  pp.compression.tolerance = cfg.compression.tolerance * (1 - cfg.mark_share);
   pp.fallback_angles = cfg.fallback_angles;
   pp.max_control_vertices = cfg.max_vertices;
   pp.min_mark_vertices = cfg.min_mark_vertices;
@@ -180,6 +185,15 @@ LoadedAsset get_or_prepare(store::Store& st, const std::string& sha, const std::
     throw PermanentError(asset_name + ": compression failed: " + e.what());
   }
   const CompressResult& cr = prepared.compression;
+  // A copy is issued within compression.tolerance or not at all: the mark is given only what the
+  // fit leaves of it.
+  if (!cr.tolerance_met)
+    throw PermanentError(asset_name + ": compression failed: the fit's Hausdorff distance is " +
+                         percent(cr.stats.hausdorff / cr.stats.diagonal) + " of the diagonal, over the " +
+                         percent(pp.compression.tolerance) +
+                         " left of compression.tolerance by the mark's watermark.share (not met " +
+                         tolerance_miss_reason(cr, pp.compression) + ")" +
+                         "; raise compression.tolerance or compression.max_vertices, or lower watermark.share");
   spdlog::info("compressed {}: {} -> {} control vertices at a crease angle of {} degrees, Hausdorff {:.3f} %, RMS "
                "{:.3f} % of the diagonal{}",
                asset_name, mesh.num_vertices(), prepared.control.num_vertices(), cr.angle_degrees,
@@ -278,6 +292,13 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
     if (!(c.customer_id == customer->id && c.key_version == ck.version && c.idempotency_key == idem))
       taken.insert(c.payload_hex);
   jobs::WatermarkSettings ws = cfg.watermark;
+  // The mark gets what the fit left of compression.tolerance (at least watermark.share of it).
+  const double fit_error = json::parse(la.row.meta_json).value("hausdorff_relative", cfg.compression.tolerance);
+  const double mark_budget = cfg.compression.tolerance - fit_error;
+  if (!(mark_budget > 0))
+    throw PermanentError(name + ": the stored fit leaves no room for the mark within compression.tolerance (" +
+                         percent(fit_error) + " of " + percent(cfg.compression.tolerance) + ")");
+  ws.params.strength = jobs::strength_within(la.prepared, cfg.watermark, mark_budget);
   const jobs::CopyIdentity identity =
       jobs::issue_copy_identity(asset.sha256, customer->id, ck.version, idem, ws.message_bits, taken);
   const Nonce& nonce = identity.nonce;
@@ -290,9 +311,20 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   // Not secret and not identifying the copy: levels for decoders, the asset for detection.
   ss.metadata = {{"levels", std::to_string(prep.levels)}, {"asset", asset.sha256}};
   jobs::CopyFiles files;
+  jobs::MarkCost cost;
   try {
-    Mesh marked = jobs::make_copy(prep, ck.key.bytes(), nonce, payload, ws);
-    files = jobs::make_copy_files(prep, marked, ss, out_format == "stl");
+    // The part's strength keeps reference marks within the budget with a margin; a copy whose
+    // own signs still move a vertex past it is made again at its own, lower strength.
+    for (int attempt = 0;; ++attempt) {
+      Mesh marked = jobs::make_copy(prep, ck.key.bytes(), nonce, payload, ws);
+      files = jobs::make_copy_files(prep, marked, ss, out_format == "stl");
+      cost = jobs::mark_cost(prep, files.decoded);
+      if (cost.max <= mark_budget) break;
+      if (attempt == 2)
+        throw PermanentError(name + ": the mark moves the copy " + percent(cost.max) + " of the diagonal, over its " +
+                             percent(mark_budget) + " share of compression.tolerance");
+      ws.params.strength *= 0.99 * mark_budget / cost.max;
+    }
   } catch (const std::invalid_argument& e) {
     throw PermanentError(name + ": cannot watermark: " + e.what());
   } catch (const InputError& e) {
@@ -364,14 +396,13 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
               {"vertices", mesh.num_vertices()},
               {"control_vertices", prep.control.num_vertices()},
               {"decoded_vertices", files.decoded.num_vertices()},
-              {"coefficients_per_bit", spread}};
-  try {  // the mark's own cost, as fractions of the part's diagonal
-    const jobs::MarkCost cost = jobs::mark_cost(prep, files.decoded);
-    result["mark_max"] = cost.max;
-    result["mark_rms"] = cost.rms;
-  } catch (const std::invalid_argument& e) {
-    spdlog::warn("job {}: {}", job.id, e.what());
-  }
+              {"coefficients_per_bit", spread},
+              // The mark's strength and cost, and its share of the tolerance (fractions of the diagonal).
+              {"strength", ws.params.strength},
+              {"fit_hausdorff", fit_error},
+              {"mark_budget", mark_budget},
+              {"mark_max", cost.max},
+              {"mark_rms", cost.rms}};
   if (!warning.empty()) result["warning"] = warning;
   rec.result_json = result.dump();
   return rec;

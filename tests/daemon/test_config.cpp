@@ -50,7 +50,7 @@ TEST_F(ConfigTest, FullConfigParses) {
       "max_attempts": 3, "poll_interval_ms": 250, "settle_ms": 500, "use_inotify": false,
       "output_format": "ply", "shutdown_grace_seconds": 5, "log_level": "debug",
       "watermark": {"method": "multiplicative", "strength": 0.02, "threshold": 0.1, "message_bits": 48,
-                    "max_vertices": 3000},
+                    "max_vertices": 3000, "share": 0.3},
       "compression": {"tolerance": 0.01, "max_vertices": 400, "levels": 2, "angle": 40, "quads": false,
                       "coarsen": true, "stream_bits": 14, "fallback_angles": [32.5, 28]},
       "detect": {"p_threshold": 1e-9, "max_candidates": 5, "context_cache_mb": 0}})",
@@ -67,6 +67,7 @@ TEST_F(ConfigTest, FullConfigParses) {
   EXPECT_EQ(c.watermark.params.method, Method::Multiplicative);
   EXPECT_EQ(c.watermark.message_bits, 48);
   EXPECT_EQ(c.max_vertices, 3000);
+  EXPECT_EQ(c.mark_share, 0.3);
   EXPECT_EQ(c.p_threshold, 1e-9);
   EXPECT_EQ(c.context_cache_mb, 0);
   EXPECT_FALSE(c.use_inotify);
@@ -75,10 +76,10 @@ TEST_F(ConfigTest, FullConfigParses) {
 
 TEST_F(ConfigTest, ReportsEveryProblemWithItsKey) {
   std::string e = expect_error(R"({"home": "home", "drop_dir": 5, "wokers": 2, "workers": "two",
-      "watermark": {"strength": 2, "colour": "red"}, "detect": {"p_threshold": 0.5, "context_cache_mb": -1}, "log_level": "loud",
+      "watermark": {"strength": 2, "colour": "red", "share": 1}, "detect": {"p_threshold": 0.5, "context_cache_mb": -1}, "log_level": "loud",
       "compression": {"quads": "yes", "coarsen": 1}})");
   for (const char* s : {"test.json", "drop_dir: must be a string", "output_dir: missing", "wokers: unknown key",
-                        "workers: must be an integer", "watermark.strength: must be in",
+                        "workers: must be an integer", "watermark.strength: must be in", "watermark.share: must be in",
                         "watermark.colour: unknown key", "detect.p_threshold: must be in", "detect.context_cache_mb: must be in [0, 1048576]", "log_level: must be one of",
                         "compression.quads: must be true or false", "compression.coarsen: must be true or false"})
     EXPECT_NE(e.find(s), std::string::npos) << s << "\n" << e;

@@ -1,5 +1,6 @@
 #include "jobs/protect.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -7,6 +8,7 @@
 #include "jobs/payload.h"
 #include "meshio/normalize.h"
 #include "subdivision/decompress.h"
+#include "subdivision/subdivide.h"
 
 namespace mm::jobs {
 
@@ -50,6 +52,30 @@ MarkCost mark_cost(const PreparedAsset& asset, const Mesh& decoded) {
     c.rms = std::sqrt(moved.squaredNorm() / static_cast<double>(moved.size())) / diagonal;
   }
   return c;
+}
+
+double strength_within(const PreparedAsset& asset, const WatermarkSettings& settings, double budget) {
+  // A copy's largest move exceeded the references' largest by up to this factor on the shared
+  // parts; a copy that still passes the budget is given its own strength (the caller checks).
+  constexpr double kMargin = 1.15;
+  if (!(budget > 0)) throw std::invalid_argument("mark budget must be positive");
+  const SubdivisionOperator op = build_subdivision(asset.control, asset.levels);
+  const Points& refined = op.refined.points;
+  const double diagonal = (refined.colwise().maxCoeff() - refined.colwise().minCoeff()).norm();
+  double largest = 0;
+  for (int r = 0; r < kReferenceMarks; ++r) {
+    Key key{};
+    Nonce nonce{};
+    for (std::size_t i = 0; i < key.size(); ++i) key[i] = static_cast<std::uint8_t>(0x5a ^ (r * 37 + i * 11));
+    for (std::size_t i = 0; i < nonce.size(); ++i) nonce[i] = static_cast<std::uint8_t>(0xa5 ^ (r * 53 + i * 7));
+    const std::uint64_t payload = 0x9e3779b97f4a7c15ULL * static_cast<std::uint64_t>(r + 1);
+    const Points moved = embed(asset.basis, asset.control.points, payload_to_bits(payload, settings.message_bits),
+                               key, nonce, settings.params) -
+                         asset.control.points;
+    largest = std::max(largest, apply_subdivision(op, moved).rowwise().norm().maxCoeff());
+  }
+  if (!(largest > 0) || !(diagonal > 0)) return settings.params.strength;
+  return std::min(settings.params.strength, settings.params.strength * budget * diagonal / (kMargin * largest));
 }
 
 int coefficients_per_bit(const PreparedAsset& asset, int message_bits) {

@@ -61,4 +61,13 @@ struct MarkCost {
 // vertices do not correspond to the asset's refined vertices.
 MarkCost mark_cost(const PreparedAsset& asset, const Mesh& decoded);
 
+// The strength every copy of the part is given so that the mark moves no decoded vertex farther
+// than `budget` (a fraction of the diagonal, as MarkCost::max): settings' strength scaled by the
+// budget over the largest move of kReferenceMarks seeded marks at that strength, less a margin
+// for the copies' own signs, and never above settings' strength. The move is linear in the
+// strength and the same for every copy up to its key's signs, so one strength serves the part's
+// copies (detection then computes a suspect's evidence once for them). Deterministic.
+constexpr int kReferenceMarks = 4;
+double strength_within(const PreparedAsset& asset, const WatermarkSettings& settings, double budget);
+
 }  // namespace mm::jobs
