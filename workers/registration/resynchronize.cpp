@@ -114,13 +114,6 @@ double rms_rows(const Points& a, const Points& b) {
   return std::sqrt((a - b).rowwise().squaredNorm().mean());
 }
 
-// The rows `rows` of p, in that order.
-Points select_rows(const Points& p, const std::vector<int>& rows) {
-  Points out(static_cast<Eigen::Index>(rows.size()), 3);
-  for (size_t k = 0; k < rows.size(); ++k) out.row(static_cast<Eigen::Index>(k)) = p.row(rows[k]);
-  return out;
-}
-
 struct Matching {
   Similarity transform;
   std::vector<int> suspect_of;  // per refined vertex: matched suspect vertex or -1
@@ -370,11 +363,9 @@ bool in_same_frame(const Points& original, const Points& suspect, double diagona
 }
 
 // `edges`: given for a suspect with as many vertices as the level (pairs then also grow along
-// the edges). `need` > 0: the hypothesis holds only if at least that many pairs are made, so the
-// rounds stop once the last round's growth, kept up for the rounds left, could not get there (a
-// remeshed suspect taken for a piece gained a third of a percent of its vertices a round, 82 %
-// after 8 rounds, and those rounds were a fifth of its detection; the shared parts' real pieces
-// pair over 90 % from the second round on).
+// the edges). `need` > 0: the hypothesis holds only with at least that many pairs, so the rounds
+// stop once the last round's growth, kept up, could not get there (a remesh tried as a piece
+// gains a fraction of a percent a round; real pieces pair over 90 % from the second round).
 Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h, const Points& suspect,
                              Matching m, int rounds, const EdgesOfBoth* edges = nullptr, int need = 0) {
   const LevelData& level = *h.level;
@@ -431,7 +422,10 @@ Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h
   }
   r.matched_fraction = static_cast<double>(m.matched) / nr;
   // Level 0: what separates the suspect from the original (mark, quantisation, noise).
-  r.residual_rms = rms_rows(select_rows(l == 0 ? level.points : h.apply(r.points), rows), p) / ctx.diagonal;
+  const Points refined = l == 0 ? level.points : h.apply(r.points);
+  Points fitted(m.matched, 3);
+  for (size_t k = 0; k < rows.size(); ++k) fitted.row(static_cast<Eigen::Index>(k)) = refined.row(rows[k]);
+  r.residual_rms = rms_rows(fitted, p) / ctx.diagonal;
   return r;
 }
 
