@@ -18,7 +18,8 @@ bench_protect() {
       "$MM" submit protect --config "$setup/meshmarkd.json" --customer "$who" "$meshes/$p" >/dev/null
     done
   done
-  (cd "$setup" && "$MM" run --until-empty --no-drops --config meshmarkd.json >/dev/null)
+  # A part the fit cannot bring within its tolerance fails its jobs; the caller reports them.
+  (cd "$setup" && "$MM" run --until-empty --no-drops --config meshmarkd.json >/dev/null) || true
 }
 
 # bench_new_run WORK_DIR: sets R to a new WORK_DIR/run-<n> holding a copy of WORK_DIR/setup's home,
