@@ -165,14 +165,9 @@ jobs::PreparedAsset decode_row(store::Store& st, const store::Polyhedron& row) {
 // (blobs first, then the row; a concurrent worker doing the same gets the same bytes and row).
 // The asset row is made only once the part has compressed, so an input that fails never becomes
 // an asset.
-LoadedAsset get_or_prepare(store::Store& st, const std::string& sha, const std::vector<std::uint8_t>& bytes,
-                           const std::string& name, const Mesh& mesh, const Config& cfg) {
-  jobs::PrepareParams pp = prepare_params(cfg);
-  const std::string key = pp.key();
-  const std::optional<store::Asset> existing = st.find_asset(sha);
-  if (existing)
-    if (auto row = st.find_polyhedron(existing->id, key)) return {*existing, *row, decode_row(st, *row)};
-  const std::string& asset_name = existing ? existing->name : name;
+// The part prepared, or PermanentError("... compression failed: <reason>").
+jobs::PreparedAsset prepare_within_tolerance(const Mesh& mesh, const jobs::PrepareParams& pp,
+                                             const std::string& asset_name) {
   jobs::PreparedAsset prepared;
   try {
     prepared = jobs::prepare_asset(mesh, pp, asset_name);
@@ -194,6 +189,29 @@ LoadedAsset get_or_prepare(store::Store& st, const std::string& sha, const std::
                          " left of compression.tolerance by the mark's watermark.share (not met " +
                          tolerance_miss_reason(cr, pp.compression) + ")" +
                          "; raise compression.tolerance or compression.max_vertices, or lower watermark.share");
+  return prepared;
+}
+
+LoadedAsset get_or_prepare(store::Store& st, const std::string& sha, const std::vector<std::uint8_t>& bytes,
+                           const std::string& name, const Mesh& mesh, const Config& cfg, RefusedParts* refused) {
+  jobs::PrepareParams pp = prepare_params(cfg);
+  const std::string key = pp.key();
+  const std::optional<store::Asset> existing = st.find_asset(sha);
+  if (existing)
+    if (auto row = st.find_polyhedron(existing->id, key)) return {*existing, *row, decode_row(st, *row)};
+  const std::string& asset_name = existing ? existing->name : name;
+  // The preparation is deterministic: a part refused once under this key is refused again.
+  const std::string refusal_key = sha + "|" + key;
+  if (refused)
+    if (auto why = refused->find(refusal_key)) throw PermanentError(*why + " (refused before; not fitted again)");
+  jobs::PreparedAsset prepared;
+  try {
+    prepared = prepare_within_tolerance(mesh, pp, asset_name);
+  } catch (const PermanentError& e) {
+    if (refused) refused->add(refusal_key, e.what());
+    throw;
+  }
+  const CompressResult& cr = prepared.compression;
   spdlog::info("compressed {}: {} -> {} control vertices at a crease angle of {} degrees, Hausdorff {:.3f} %, RMS "
                "{:.3f} % of the diagonal{}",
                asset_name, mesh.num_vertices(), prepared.control.num_vertices(), cr.angle_degrees,
@@ -262,7 +280,21 @@ std::string output_base_for(const Config& cfg, const std::string& customer, cons
   return (fs::path(cfg.output_dir) / customer / (stem + "-" + support::to_hex(h, sizeof h))).string();
 }
 
-store::JobRecords run_protect(store::Store& st, const store::Job& job, const HandlerContext& ctx) {
+std::optional<std::string> RefusedParts::find(const std::string& key) const {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = reasons_.find(key);
+  if (it == reasons_.end()) return std::nullopt;
+  return it->second;
+}
+
+void RefusedParts::add(const std::string& key, const std::string& reason) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  if (reasons_.size() >= kMaxEntries) reasons_.clear();
+  reasons_.emplace(key, reason);
+}
+
+store::JobRecords run_protect(store::Store& st, const store::Job& job, const HandlerContext& ctx,
+                              RefusedParts* refused) {
   const Config& cfg = ctx.config;
   json p = parse_payload(job);
   std::string customer_name = str_field(p, "customer", job);
@@ -281,7 +313,7 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   if (out_format != "stl" && out_format != "obj" && out_format != "off" && out_format != "ply")
     throw PermanentError("job " + std::to_string(job.id) + ": unsupported output_format \"" + out_format + "\"");
 
-  LoadedAsset la = get_or_prepare(st, sha, bytes, name, mesh, cfg);
+  LoadedAsset la = get_or_prepare(st, sha, bytes, name, mesh, cfg, refused);
   const store::Asset& asset = la.asset;
   store::CustomerKey ck = st.customer_key(customer->id);
 
@@ -609,7 +641,10 @@ store::JobRecords run_evidence(store::Store& st, const store::Job& job, const Ha
 
 HandlerMap default_handlers() {
   HandlerMap m;
-  m["protect"] = run_protect;
+  auto refused = std::make_shared<RefusedParts>();
+  m["protect"] = [refused](store::Store& st, const store::Job& job, const HandlerContext& ctx) {
+    return run_protect(st, job, ctx, refused.get());
+  };
   m["evidence"] = run_evidence;
   // One cache for every worker thread the map is handed to (copies share it).
   auto contexts = std::make_shared<ContextCache>(static_cast<std::size_t>(Config{}.context_cache_mb) << 20);

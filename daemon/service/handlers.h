@@ -12,8 +12,11 @@
 // customer, bad payload): the job is discarded at once with that reason. Any other exception is
 // retried with backoff up to max_attempts.
 #pragma once
+#include <cstddef>
 #include <functional>
 #include <map>
+#include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -45,11 +48,28 @@ struct HandlerContext {
 using Handler = std::function<store::JobRecords(store::Store&, const store::Job&, const HandlerContext&)>;
 using HandlerMap = std::map<std::string, Handler>;
 
-// protect, detect, noop. The detect handler keeps resynchronisation contexts in one ContextCache
+// protect, detect, noop. The protect handler shares one RefusedParts; the detect handler keeps resynchronisation contexts in one ContextCache
 // that every copy of the map shares (all workers of a pool), budgeted by detect.context_cache_mb.
 HandlerMap default_handlers();
 
-store::JobRecords run_protect(store::Store& st, const store::Job& job, const HandlerContext& ctx);
+// Parts whose preparation was refused (compression failed, or the fit missed its share of the
+// tolerance), by content hash and preparation key, for the process's lifetime: a later job for
+// the same part fails at once with the same reason instead of fitting it again (a nightly run
+// protects each part for every customer). At most kMaxEntries, then forgotten.
+class RefusedParts {
+ public:
+  static constexpr std::size_t kMaxEntries = 10000;
+  std::optional<std::string> find(const std::string& key) const;
+  void add(const std::string& key, const std::string& reason);
+
+ private:
+  mutable std::mutex mutex_;
+  std::map<std::string, std::string> reasons_;
+};
+
+// refused: shared by the workers (null: every job prepares its part itself).
+store::JobRecords run_protect(store::Store& st, const store::Job& job, const HandlerContext& ctx,
+                              RefusedParts* refused = nullptr);
 // evidence: {"detect_job": <id>}: the package of that job's detection, written to
 // <output_dir>/evidence/<case id>/ (service/evidence_package.h). Enqueued by detect jobs that
 // attribute when evidence.auto is set.

@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -555,6 +556,30 @@ TEST_F(E2E, MarkFoundWithAnotherPayloadIsAttributedWithThePayloadReported) {
 
 // The other half of the rule: a copy's payload decoded whole while its mark's p is not below
 // the threshold (here a threshold no copy can reach) is inconclusive too, not "no watermark".
+// A part whose fit cannot meet its share of compression.tolerance within the vertex budget is
+// refused with the distance reached and the reason, and no copy is issued; the next customer's job
+// for it fails with the same reason without fitting it again.
+TEST_F(E2E, PartOutsideTheToleranceIsRefusedOnceForEveryCustomer) {
+  MM_REQUIRE_SHARED_MESHES();
+  write_config({{"workers", 1}, {"compression", {{"tolerance", 0.002}, {"max_vertices", 40}}}});
+  const std::string part = mm::test::shared_mesh("abc9.stl");
+  for (const char* c : {"alpha", "beta"}) ASSERT_EQ(meshmark_with_config(std::string("submit protect --customer ") + c + " " + part), 0);
+  EXPECT_NE(meshmark_with_config("run --until-empty --no-drops"), 0);  // some jobs did not complete
+  auto st = store();
+  EXPECT_TRUE(st->list_copies().empty());
+  std::vector<std::string> errors;
+  for (const auto& j : st->list_jobs({})) {
+    EXPECT_EQ(j.state, mm::store::JobState::discarded);
+    ASSERT_FALSE(j.errors.empty());
+    errors.push_back(j.errors.back().error);
+  }
+  ASSERT_EQ(errors.size(), 2u);
+  std::sort(errors.begin(), errors.end());  // the plain reason sorts before the one with the suffix
+  EXPECT_NE(errors[0].find("abc9.stl: compression failed: the fit's Hausdorff distance is "), std::string::npos) << errors[0];
+  EXPECT_NE(errors[0].find("within the control vertex budget of 40"), std::string::npos) << errors[0];
+  EXPECT_EQ(errors[1], errors[0] + " (refused before; not fitted again)");
+}
+
 TEST_F(E2E, PayloadWithoutASignificantMarkIsInconclusive) {
   MM_REQUIRE_SHARED_MESHES();
   write_config({{"output_format", "stl"}, {"watermark", {{"message_bits", 16}}}, {"detect", {{"p_threshold", 1e-300}}}});
