@@ -161,6 +161,24 @@ TEST_F(ProtectDetect, CopyFilesAreTheMarkedStreamAndItsDecodedSurface) {
   for (const auto& face : tri.decoded.faces) EXPECT_EQ(face.size(), 3u);
 }
 
+// The part's strength for a mark budget: the configured strength when its mark fits, else scaled
+// (the move is linear in the strength), and the copies made at it stay within the budget.
+TEST_F(ProtectDetect, StrengthWithinABudgetKeepsTheCopiesInsideIt) {
+  const WatermarkSettings s;
+  const double at_full = mark_cost(fx->asset, fx->files[0].decoded).max;
+  EXPECT_EQ(strength_within(fx->asset, s, 10 * at_full), s.params.strength);
+  const double budget = at_full / 3, strength = strength_within(fx->asset, s, budget);
+  EXPECT_LT(strength, s.params.strength / 2);
+  EXPECT_NEAR(strength_within(fx->asset, s, budget / 2), strength / 2, 1e-12 * strength);
+  WatermarkSettings lower = s;
+  lower.params.strength = strength;
+  for (const CopyCandidate& c : fx->copies) {
+    const CopyFiles f = make_copy_files(fx->asset, make_copy(fx->asset, c.key, c.nonce, c.payload, lower), {}, false);
+    EXPECT_LE(mark_cost(fx->asset, f.decoded).max, budget);
+  }
+  EXPECT_THROW(strength_within(fx->asset, s, 0), std::invalid_argument);
+}
+
 TEST_F(ProtectDetect, EveryFormOfACopyIsAttributedToItsCopyOnly) {
   for (int i = 0; i < 3; ++i) {
     const CopyFiles& f = fx->files[static_cast<std::size_t>(i)];

@@ -55,8 +55,8 @@ MarkCost mark_cost(const PreparedAsset& asset, const Mesh& decoded) {
 }
 
 double strength_within(const PreparedAsset& asset, const WatermarkSettings& settings, double budget) {
-  // A copy's largest move exceeded the references' largest by up to this factor on the shared
-  // parts; a copy that still passes the budget is given its own strength (the caller checks).
+  // Room for a copy's own signs to move a vertex farther than the references did; a copy that
+  // still passes the budget is given its own strength (the caller checks).
   constexpr double kMargin = 1.15;
   if (!(budget > 0)) throw std::invalid_argument("mark budget must be positive");
   const SubdivisionOperator op = build_subdivision(asset.control, asset.levels);
