@@ -48,8 +48,9 @@ struct HandlerContext {
 using Handler = std::function<store::JobRecords(store::Store&, const store::Job&, const HandlerContext&)>;
 using HandlerMap = std::map<std::string, Handler>;
 
-// protect, detect, noop. The protect handler shares one RefusedParts; the detect handler keeps resynchronisation contexts in one ContextCache
-// that every copy of the map shares (all workers of a pool), budgeted by detect.context_cache_mb.
+// protect, detect, noop. Every copy of the map (all workers of a pool) shares the protect
+// handler's RefusedParts and the detect handler's ContextCache of resynchronisation contexts,
+// budgeted by detect.context_cache_mb.
 HandlerMap default_handlers();
 
 // Parts whose preparation was refused (compression failed, or the fit missed its share of the

@@ -28,8 +28,7 @@ struct PartOptions {
   std::vector<double> fallback_angles;  // tried in turn while no fit meets the tolerance
   // When no angle meets the tolerance in fit.max_rounds, the closest fit goes on to this many
   // rounds (ending sooner at the tolerance or the budget): a tight tolerance needs more growth
-  // steps than the first rounds give (fandisk_quads at 0.25 %: 143 vertices after 6 rounds at
-  // 0.47 %). Not past fit.max_rounds: no more rounds.
+  // steps than the first rounds give. Not past fit.max_rounds: no more rounds.
   int extended_rounds = 24;
   int at_once = 1;       // fits of the angles run at once (through `parallel`)
   ParallelFor parallel;  // empty: one after another on this thread
