@@ -198,7 +198,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
       c.number(w, "watermark.", "strength", cfg.watermark.params.strength, 0, 1, true);
       c.number(w, "watermark.", "threshold", cfg.watermark.params.threshold, 0, 1e9, false);
       c.integer(w, "watermark.", "message_bits", cfg.watermark.message_bits, 8, 64);
-      c.integer(w, "watermark.", "max_vertices", cfg.max_vertices, 4, 20000);
+      c.integer(w, "watermark.", "max_vertices", cfg.max_vertices, 4, kMaxBasisVertices);
       c.integer(w, "watermark.", "min_vertices", cfg.min_mark_vertices, 0, 20000);
       c.number(w, "watermark.", "share", cfg.mark_share, 0, 0.9, true);
     }
@@ -211,7 +211,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
       c.known(w, "compression.", {"tolerance", "max_vertices", "levels", "angle", "fallback_angles", "quads",
                                            "coarsen", "stream_bits"});
       c.number(w, "compression.", "tolerance", cfg.compression.tolerance, 0, 0.5, true);
-      c.integer(w, "compression.", "max_vertices", cfg.compression.max_vertices, 8, 6000);
+      c.integer(w, "compression.", "max_vertices", cfg.compression.max_vertices, 8, kMaxBasisVertices);
       c.integer(w, "compression.", "levels", cfg.compression.levels, 1, 5);
       c.number(w, "compression.", "angle", cfg.compression.angle_degrees, 0, 180, true);
       c.numbers(w, "compression.", "fallback_angles", cfg.fallback_angles, 0, 180);
@@ -222,7 +222,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
   }
   if (cfg.compression.max_vertices > cfg.max_vertices)
     c.error("compression.max_vertices", "must be at most watermark.max_vertices (" + std::to_string(cfg.max_vertices) +
-                                            "), the dense spectral basis limit");
+                                            "), the watermark's limit");
   if (j.contains("detect")) {
     const json& d = j["detect"];
     if (!d.is_object()) {

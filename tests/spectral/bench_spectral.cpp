@@ -1,6 +1,10 @@
-// Eigen-decomposition and embedding cost on seeded quad-torus control meshes of 100, 500 and
-// 2000 vertices. Run: bench_spectral (Release build).
+// Eigen-decomposition, embedding and extraction cost on seeded quad-torus control meshes of 100,
+// 500 and 2000 vertices (one dense basis) and 10,000 and 50,000 (patched bases). Counters: the
+// stored basis's size and the process's peak resident memory so far. Run: bench_spectral
+// (Release build).
 #include <benchmark/benchmark.h>
+
+#include <sys/resource.h>
 
 #include <random>
 
@@ -14,14 +18,26 @@ mm::Mesh control_mesh(int n) {
   switch (n) {
     case 100: return mm::test::quad_torus(10, 10, 42);
     case 500: return mm::test::quad_torus(25, 20, 42);
-    default: return mm::test::quad_torus(50, 40, 42);
+    case 2000: return mm::test::quad_torus(50, 40, 42);
+    case 10000: return mm::test::quad_torus(125, 80, 42);
+    default: return mm::test::quad_torus(250, 200, 42);
   }
+}
+
+void count_memory(benchmark::State& state, const mm::SpectralBasis& basis) {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  state.counters["vertices"] = basis.num_vertices();
+  state.counters["patches"] = static_cast<double>(basis.patches.size());
+  state.counters["basis_MB"] = static_cast<double>(mm::serialize_basis(basis).size()) / 1e6;
+  state.counters["peak_rss_MB"] = static_cast<double>(usage.ru_maxrss) / 1024.0;
 }
 
 void BM_ComputeBasis(benchmark::State& state) {
   const mm::Mesh mesh = control_mesh(static_cast<int>(state.range(0)));
-  for (auto _ : state) benchmark::DoNotOptimize(mm::compute_basis(mesh));
-  state.counters["vertices"] = mesh.num_vertices();
+  mm::SpectralBasis basis;
+  for (auto _ : state) benchmark::DoNotOptimize(basis = mm::compute_basis(mesh));
+  count_memory(state, basis);
 }
 
 void BM_Embed(benchmark::State& state, mm::Method method) {
@@ -35,7 +51,7 @@ void BM_Embed(benchmark::State& state, mm::Method method) {
   key[0] = 1;
   const mm::EmbedParams params{method, 0.01, 0.05};
   for (auto _ : state) benchmark::DoNotOptimize(mm::embed(basis, mesh.points, message, key, nonce, params));
-  state.counters["vertices"] = mesh.num_vertices();
+  count_memory(state, basis);
 }
 
 void BM_Extract(benchmark::State& state) {
@@ -48,14 +64,14 @@ void BM_Extract(benchmark::State& state) {
   const mm::Points marked = mm::embed(basis, mesh.points, message, key, nonce, params);
   for (auto _ : state)
     benchmark::DoNotOptimize(mm::extract(basis, mesh.points, marked, 64, key, nonce, params, &message));
+  count_memory(state, basis);
 }
 
 }  // namespace
 
-BENCHMARK(BM_ComputeBasis)->Arg(100)->Arg(500)->Arg(2000)->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Embed, method1, mm::Method::Multiplicative)
-    ->Arg(100)->Arg(500)->Arg(2000)->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Embed, method2, mm::Method::Additive)
-    ->Arg(100)->Arg(500)->Arg(2000)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_Extract)->Arg(100)->Arg(500)->Arg(2000)->Unit(benchmark::kMillisecond);
+#define MM_SIZES ->Arg(100)->Arg(500)->Arg(2000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMillisecond)
+BENCHMARK(BM_ComputeBasis) MM_SIZES;
+BENCHMARK_CAPTURE(BM_Embed, method1, mm::Method::Multiplicative) MM_SIZES;
+BENCHMARK_CAPTURE(BM_Embed, method2, mm::Method::Additive) MM_SIZES;
+BENCHMARK(BM_Extract) MM_SIZES;
 BENCHMARK_MAIN();

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -12,16 +13,21 @@
 namespace mm {
 namespace {
 
+// The basis as an n x n matrix, columns in the basis's order.
+Eigen::MatrixXd matrix(const SpectralBasis& b) { return basis_columns(b, 0, b.num_vertices()); }
+
 // max |K W - W diag(lambda)| / max |K|
 double eigen_residual(const Mesh& mesh, const SpectralBasis& b) {
   const Eigen::MatrixXd K = kirchhoff_matrix(mesh);
-  const Eigen::MatrixXd R = K * b.W - b.W * b.eigenvalues.asDiagonal();
+  const Eigen::MatrixXd W = matrix(b);
+  const Eigen::MatrixXd R = K * W - W * b.eigenvalues.asDiagonal();
   return R.cwiseAbs().maxCoeff() / K.cwiseAbs().maxCoeff();
 }
 
 double orthonormality_error(const SpectralBasis& b) {
-  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(b.W.cols(), b.W.cols());
-  return (b.W.transpose() * b.W - I).cwiseAbs().maxCoeff();
+  const Eigen::MatrixXd W = matrix(b);
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(W.cols(), W.cols());
+  return (W.transpose() * W - I).cwiseAbs().maxCoeff();
 }
 
 double reconstruction_error(const SpectralBasis& b, const Points& x) {
@@ -29,8 +35,8 @@ double reconstruction_error(const SpectralBasis& b, const Points& x) {
 }
 
 void expect_sound_basis(const Mesh& mesh, const SpectralBasis& b) {
-  ASSERT_EQ(b.W.rows(), mesh.num_vertices());
-  ASSERT_EQ(b.W.cols(), mesh.num_vertices());
+  ASSERT_EQ(b.num_vertices(), mesh.num_vertices());
+  ASSERT_EQ(b.eigenvalues.size(), mesh.num_vertices());
   EXPECT_LT(eigen_residual(mesh, b), 1e-10);
   EXPECT_LT(orthonormality_error(b), 1e-12);
   EXPECT_LT(reconstruction_error(b, mesh.points), 1e-12);
@@ -105,13 +111,14 @@ TEST(SpectralBasis, ComponentsGiveExactIndicatorNullSpace) {
   const SpectralBasis b = compute_basis(m);
   ASSERT_EQ(b.num_components, 3);
   expect_sound_basis(m, b);
+  const Eigen::MatrixXd W = matrix(b);
   // Component order by lowest vertex: torus (30 vertices), grid (20), the lone point.
   const int sizes[3] = {30, 20, 1};
   int start = 0;
   for (int c = 0; c < 3; ++c) {
     for (int v = 0; v < m.num_vertices(); ++v) {
       const bool inside = v >= start && v < start + sizes[c];
-      EXPECT_EQ(b.W(v, c), inside ? 1.0 / std::sqrt(double(sizes[c])) : 0.0);
+      EXPECT_EQ(W(v, c), inside ? 1.0 / std::sqrt(double(sizes[c])) : 0.0);
     }
     start += sizes[c];
   }
@@ -119,11 +126,12 @@ TEST(SpectralBasis, ComponentsGiveExactIndicatorNullSpace) {
 
 TEST(SpectralBasis, SignConventionLargestEntryPositive) {
   const SpectralBasis b = compute_basis(test::quad_torus(9, 7));
-  for (int j = b.num_components; j < b.W.cols(); ++j) {
-    const double largest = b.W.col(j).cwiseAbs().maxCoeff();
-    for (int i = 0; i < b.W.rows(); ++i)
-      if (std::abs(b.W(i, j)) >= largest * (1 - 1e-9)) {
-        EXPECT_GT(b.W(i, j), 0.0) << "column " << j;
+  const Eigen::MatrixXd W = matrix(b);
+  for (int j = b.num_components; j < W.cols(); ++j) {
+    const double largest = W.col(j).cwiseAbs().maxCoeff();
+    for (int i = 0; i < W.rows(); ++i)
+      if (std::abs(W(i, j)) >= largest * (1 - 1e-9)) {
+        EXPECT_GT(W(i, j), 0.0) << "column " << j;
         break;
       }
   }
@@ -151,8 +159,9 @@ TEST(SpectralBasis, SerializationRoundTripsExactly) {
   const auto bytes = serialize_basis(b);
   const SpectralBasis c = deserialize_basis(bytes);
   EXPECT_EQ(c.num_components, b.num_components);
-  ASSERT_EQ(c.W.rows(), b.W.rows());
-  EXPECT_EQ(std::memcmp(c.W.data(), b.W.data(), sizeof(double) * b.W.size()), 0);
+  const Eigen::MatrixXd cw = matrix(c), bw = matrix(b);
+  ASSERT_EQ(cw.rows(), bw.rows());
+  EXPECT_EQ(std::memcmp(cw.data(), bw.data(), sizeof(double) * bw.size()), 0);
   EXPECT_EQ(std::memcmp(c.eigenvalues.data(), b.eigenvalues.data(),
                         sizeof(double) * b.eigenvalues.size()),
             0);
@@ -202,6 +211,88 @@ TEST(SpectralBasis, EveryTruncationAndByteFlipIsRejected) {
     EXPECT_THROW(deserialize_basis(bad), InputError) << i;
   }
   auto longer = good;
+  longer.push_back(0);
+  EXPECT_THROW(deserialize_basis(longer), InputError);
+}
+
+// Past kDenseBasisVertices the basis is patched: each patch is the dense basis of its own
+// Kirchhoff matrix, and together they are an orthonormal basis of every vertex position.
+TEST(SpectralBasis, PatchedBasisIsExactPerPatchAndOrthonormalOverall) {
+  const Mesh m = test::quad_torus(90, 70, 5);  // 6,300 vertices
+  ASSERT_GT(m.num_vertices(), kDenseBasisVertices);
+  const SpectralBasis b = compute_basis(m);
+  ASSERT_GT(b.patches.size(), 1u);
+  EXPECT_EQ(b.num_vertices(), m.num_vertices());
+  std::vector<int> seen(m.num_vertices(), 0), patch_of(m.num_vertices()), local(m.num_vertices());
+  for (std::size_t p = 0; p < b.patches.size(); ++p) {
+    const SpectralPatch& patch = b.patches[p];
+    EXPECT_LE(static_cast<int>(patch.vertices.size()), kPatchVertices);
+    EXPECT_GE(static_cast<int>(patch.vertices.size()), kPatchVertices / 2);
+    EXPECT_TRUE(std::is_sorted(patch.vertices.begin(), patch.vertices.end()));
+    for (std::size_t i = 0; i < patch.vertices.size(); ++i) {
+      ++seen[patch.vertices[i]];
+      patch_of[patch.vertices[i]] = static_cast<int>(p);
+      local[patch.vertices[i]] = static_cast<int>(i);
+    }
+  }
+  for (int v = 0; v < m.num_vertices(); ++v) ASSERT_EQ(seen[v], 1) << v;
+  // Each patch: K_p W_p = W_p diag(lambda_p), its own edges only.
+  std::vector<Eigen::MatrixXd> K(b.patches.size());
+  for (std::size_t p = 0; p < b.patches.size(); ++p)
+    K[p] = Eigen::MatrixXd::Zero(b.patches[p].vertices.size(), b.patches[p].vertices.size());
+  for (auto [x, y] : unique_edges(m))
+    if (patch_of[x] == patch_of[y]) {
+      Eigen::MatrixXd& k = K[patch_of[x]];
+      k(local[x], local[y]) = k(local[y], local[x]) = -1;
+      k(local[x], local[x]) += 1;
+      k(local[y], local[y]) += 1;
+    }
+  for (std::size_t p = 0; p < b.patches.size(); ++p) {
+    const SpectralPatch& patch = b.patches[p];
+    const Eigen::MatrixXd R = K[p] * patch.W - patch.W * patch.eigenvalues.asDiagonal();
+    EXPECT_LT(R.cwiseAbs().maxCoeff(), 1e-10) << p;
+  }
+  // Column order: the patches' zero columns, then ascending eigenvalues.
+  int zeros = 0;
+  for (const SpectralPatch& patch : b.patches)
+    for (Eigen::Index i = 0; i < patch.eigenvalues.size(); ++i) zeros += patch.eigenvalues[i] == 0.0;
+  EXPECT_EQ(b.num_components, zeros);
+  EXPECT_GE(b.num_components, static_cast<int>(b.patches.size()));
+  for (int i = 0; i < b.num_components; ++i) EXPECT_EQ(b.eigenvalues[i], 0.0);
+  for (int i = b.num_components + 1; i < b.eigenvalues.size(); ++i) ASSERT_LE(b.eigenvalues[i - 1], b.eigenvalues[i]);
+  // Orthonormal overall: the transform keeps norms and inverts exactly.
+  EXPECT_LT(reconstruction_error(b, m.points), 1e-11);
+  const Points cs = to_spectral(b, m.points);
+  EXPECT_NEAR(cs.squaredNorm(), m.points.squaredNorm(), 1e-10 * m.points.squaredNorm());
+  const Eigen::MatrixXd low = basis_columns(b, b.num_components, 40);
+  EXPECT_LT((low.transpose() * low - Eigen::MatrixXd::Identity(40, 40)).cwiseAbs().maxCoeff(), 1e-12);
+  for (int k = 0; k < 40; ++k) {
+    Points unit = Points::Zero(m.num_vertices(), 3);
+    unit(b.num_components + k, 1) = 1;
+    EXPECT_LT((from_spectral(b, unit).col(1) - low.col(k)).cwiseAbs().maxCoeff(), 1e-15) << k;
+  }
+}
+
+TEST(SpectralBasis, PatchedBasisIsDeterministicAndSerialisesExactly) {
+  const Mesh m = test::quad_torus(90, 70, 6);
+  const SpectralBasis b = compute_basis(m);
+  const auto bytes = serialize_basis(b);
+  EXPECT_EQ(serialize_basis(compute_basis(m)), bytes);
+  const SpectralBasis c = deserialize_basis(bytes);
+  EXPECT_EQ(serialize_basis(c), bytes);
+  EXPECT_EQ(c.num_components, b.num_components);
+  EXPECT_EQ(c.column_patch, b.column_patch);
+  EXPECT_EQ(c.column_local, b.column_local);
+  EXPECT_EQ(to_spectral(c, m.points), to_spectral(b, m.points));
+  // Damage anywhere is refused: truncation, a flipped byte, a byte too many.
+  for (std::size_t len : {std::size_t{0}, std::size_t{20}, bytes.size() / 2, bytes.size() - 1})
+    EXPECT_THROW(deserialize_basis(std::vector<std::uint8_t>(bytes.begin(), bytes.begin() + len)), InputError) << len;
+  for (std::size_t i : {std::size_t{9}, std::size_t{13}, std::size_t{22}, std::size_t{30}, bytes.size() / 3, bytes.size() - 5}) {
+    auto bad = bytes;
+    bad[i] ^= 0x40;
+    EXPECT_THROW(deserialize_basis(bad), InputError) << i;
+  }
+  auto longer = bytes;
   longer.push_back(0);
   EXPECT_THROW(deserialize_basis(longer), InputError);
 }

@@ -116,6 +116,23 @@ TEST(Watermark, UnattackedIsPerfectOnFandiskBothMethods) {
   expect_perfect(fandisk(), kMethod2);
 }
 
+// A polyhedron past the dense basis's limit is marked and read through the patched basis alike,
+// and another key reads nothing from it.
+TEST(Watermark, PatchedBasisMarksAndReadsLikeTheDenseOne) {
+  const Mesh m = test::quad_torus(90, 70, 8);  // 6,300 vertices
+  ASSERT_GT(m.num_vertices(), kDenseBasisVertices);
+  expect_perfect(m, kMethod1);
+  expect_perfect(m, kMethod2);
+  const SpectralBasis basis = compute_basis(m);
+  const auto msg = seeded_message(64, 9);
+  const Points marked = embed(basis, m.points, msg, seeded_key(9), seeded_nonce(9), kMethod2);
+  for (std::uint64_t s = 200; s < 205; ++s) {
+    const Extraction e = extract(basis, m.points, marked, 64, seeded_key(s), seeded_nonce(9), kMethod2, &msg);
+    EXPECT_LT(std::abs(e.correlation), 0.05) << s;
+    EXPECT_GT(e.p_value, 0.01) << s;
+  }
+}
+
 TEST(Watermark, SpectralChangeFollowsEquations8And9) {
   const Mesh m = torus();
   const SpectralBasis basis = compute_basis(m);

@@ -25,9 +25,9 @@ struct PrepareParams {
   // is kept, else the closest (fallback_crease_angles(), fitting/compress.h, says why). Empty:
   // the configured angle only. In key().
   std::vector<double> fallback_angles = fallback_crease_angles();
-  // The basis is dense (n x n doubles): a control budget above this is refused before compressing,
-  // and so is a control polyhedron that ends up larger; a min_mark_vertices step that would pass
-  // it is not taken. Not in key().
+  // The basis costs memory and time with the control vertex count (spectral_basis.h): a control
+  // budget above this is refused before compressing, and so is a control polyhedron that ends up
+  // larger; a min_mark_vertices step that would pass it is not taken. Not in key().
   int max_control_vertices = 4000;  // <= kMaxBasisVertices
   // A smaller control polyhedron is refined by whole subdivision steps until it has at least
   // this many vertices (the same limit surface, decoded one level less per step), unless a step

@@ -33,7 +33,7 @@ CoefficientEvidence coefficient_evidence(const SpectralBasis& basis, const Point
   ev.repeat = usable / message_bits;
   const int len = ev.repeat * message_bits;
   const Points cs = to_spectral(basis, original);
-  const Points d = basis.W.transpose() * (suspect - original);
+  const Points d = to_spectral(basis, suspect - original);
   auto at = [&](const Points& m, int j) { return m(basis.num_components + j / 3, j % 3); };
 
   ev.u.assign(static_cast<std::size_t>(len), 0.0);

@@ -49,7 +49,7 @@ CoefficientEvidence surface_evidence(const SpectralBasis& basis, const Points& o
     G(j / 3, j % 3) = mv.size;
     dir(j / 3, j % 3) = mv.direction;
   }
-  const Eigen::MatrixXd P = rows * basis.W.middleCols(basis.num_components, K);  // m x K
+  const Eigen::MatrixXd P = rows * basis_columns(basis, basis.num_components, K);  // m x K
 
   // A: m x 3K, column a K + k the normal offsets coefficient (k, axis a) makes at unit gain,
   // projected off the nuisance. The normal equations A^T A are formed once (by row blocks, so A

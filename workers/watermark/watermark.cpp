@@ -94,7 +94,7 @@ SpectralDisplacement spectral_displacement(const SpectralBasis& basis, const Poi
   if (!original.allFinite()) throw std::invalid_argument("extract: non-finite original coordinates");
   SpectralDisplacement out;
   out.original = to_spectral(basis, original);
-  out.displacement = basis.W.transpose() * (suspect - original);  // without cancellation
+  out.displacement = to_spectral(basis, suspect - original);  // without cancellation
   return out;
 }
 
