@@ -393,6 +393,7 @@ void add_extract_command(CLI::App& app) {
         {"verdict_p", verdict_p},
         {"verdict_neg_log10_p", mark_p.neg_log10_p},
         {"bit_error_rate", static_cast<double>(wrong_bits) / static_cast<double>(expected.size())},
+        {"strength", rec.params.strength},
         {"message",
          {{"text", decoded},
           {"bits", bits_to_string(message)},

@@ -201,6 +201,14 @@ Reproduction reproduce_detection(store::Store& st, std::int64_t detection_id) {
   // candidate count, which is what was used now.
   for (const char* k : {"parameters", "reason"})
     if (!before["details"].contains(k)) after["details"].erase(k);
+  // Nor did they state each copy's strength, which came from the copy's own record then as now.
+  if (before["details"].contains("candidates") && after["details"].contains("candidates"))
+    for (std::size_t i = 0; i < before["details"]["candidates"].size() && i < after["details"]["candidates"].size(); ++i) {
+      const json& was = before["details"]["candidates"][i].value("copies", json::array());
+      json& is = after["details"]["candidates"][i]["copies"];
+      for (std::size_t k = 0; k < was.size() && k < is.size(); ++k)
+        if (!was[k].contains("strength")) is[k].erase("strength");
+    }
   Reproduction r;
   r.recorded_json = before.dump();
   r.recomputed_json = after.dump();
@@ -279,7 +287,7 @@ EvidencePackage write_evidence_package(store::Store& st, const store::HomePaths&
       json stats = json::object();
       for (const char* k : {"correlation", "compared", "sign_neg_log10_p", "binomial_neg_log10_p",
                             "calibrated_neg_log10_p", "null_mean", "null_sd", "matched_statistic",
-                            "matched_neg_log10_p", "bit_error_rate"})
+                            "matched_neg_log10_p", "bit_error_rate", "strength"})
         if (s.contains(k)) stats[k] = s[k];
       copies.push_back({{"copy_id", cid}, {"customer", who}, {"neg_log10_corrected_p", nl},
                         {"corrected_p", p}, {"payload_matches", s.value("payload_matches", false)},

@@ -503,7 +503,8 @@ DetectionRecord detect_record(store::Store& st, const jobs::Suspect& suspect, co
                               {"null_mean", s.null_mean},
                               {"null_sd", s.null_sd},
                               {"payload_matches", s.payload_matches},
-                              {"bit_error_rate", s.bit_error_rate}});
+                              {"bit_error_rate", s.bit_error_rate},
+                              {"strength", s.strength}});
     details["candidates"].push_back(cj);
   }
   if (det.best) {

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <cstdlib>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "cli/cli_test_util.h"
@@ -205,6 +206,35 @@ TEST_F(Evidence, ReproduceRecomputesTheDetectionBitForBitAndNamesAnyDifference) 
                          std::to_string(detection) + "\"").c_str()), 0);
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("DIFFERS  /p_value"), std::string::npos) << r.out;
+  // Each copy's score states the strength the copy was issued with; a record from before that
+  // field still reproduces.
+  r = meshmark(*s, {"detections", "--home", home, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json dets = json::parse(r.out);
+  r = meshmark(*s, {"copies", "--home", home, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::map<std::int64_t, double> issued;
+  for (const auto& c : json::parse(r.out)) issued[c["id"].get<std::int64_t>()] = c["params"]["strength"].get<double>();
+  int stated = 0;
+  for (const auto& d : dets)
+    if (d["id"].get<std::int64_t>() == detection)
+      for (const auto& c : d["details"]["candidates"])
+        for (const auto& cs : c["copies"]) {
+          ASSERT_TRUE(cs.contains("strength")) << cs.dump();
+          EXPECT_EQ(cs["strength"].get<double>(), issued.at(cs["copy_id"].get<std::int64_t>()));
+          ++stated;
+        }
+  EXPECT_GT(stated, 0);
+  ASSERT_EQ(std::system(("sqlite3 " + quote(db) + " \"UPDATE detections SET details_json = json_remove(details_json, " +
+                         "'$.candidates[0].copies[0].strength') WHERE id = " + std::to_string(detection) + "\"").c_str()), 0);
+  r = meshmark(*s, {"detections", "--home", home, "--json"});
+  for (const auto& d : json::parse(r.out))
+    if (d["id"].get<std::int64_t>() == detection) {
+      EXPECT_FALSE(d["details"]["candidates"][0]["copies"][0].contains("strength"));
+    }
+  r = meshmark(*s, {"reproduce", std::to_string(detection), "--home", home});
+  EXPECT_EQ(r.code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("identical: all"), std::string::npos) << r.out;
   r = meshmark(*s, {"reproduce", "999", "--home", home});
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("no detection 999"), std::string::npos) << r.err;

@@ -144,6 +144,7 @@ std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& re
     const CopyStatistics st = copy_statistics(asset.basis, evidence, c.key, c.nonce, c.settings.params, expected);
     CopyScore s;
     s.copy_id = c.copy_id;
+    s.strength = c.settings.params.strength;
     s.correlation = st.sign.correlation;
     s.compared = st.sign.compared;
     s.binomial_p = st.sign.p_value;

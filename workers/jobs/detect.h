@@ -49,6 +49,7 @@ struct CopyScore {
   std::uint64_t decoded_payload = 0;
   bool payload_matches = false;
   double bit_error_rate = 0;
+  double strength = 0;  // the mark's strength a this copy was issued with, which the scores assumed
 };
 
 struct Verdict {
