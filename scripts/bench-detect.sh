@@ -13,13 +13,18 @@
 #   MESHMARK=path/to/meshmark (default build/daemon/meshmark), MESHES=dir,
 #   LIST="fandisk.off bracket-3.stl ..." (default: the nine CAD parts of the compression benchmark),
 #   ATTACKS="none noise-0.001 ..." (default: all below), WORKERS=2,
-#   TOLERANCE=0.001 (compression.tolerance of the protected copies; default the config's, 0.005).
+#   TOLERANCE=0.001 (compression.tolerance of the protected copies; default the config's, 0.005),
+#   MAX_VERTICES=20000 (with TOLERANCE: compression.max_vertices and watermark.max_vertices; the
+#   results file is then detect-tolerance-<TOLERANCE>-<MAX_VERTICES>.md).
 # WORK_DIR/setup (home, copies, suspects) is made once and reused; each run detects in a fresh
 # copy of the home (WORK_DIR/run-<n>), so builds are compared on the same copies and suspects.
 set -euo pipefail
-BENCH_ENV="MESHMARK MESHES LIST ATTACKS WORKERS TOLERANCE"
+BENCH_ENV="MESHMARK MESHES LIST ATTACKS WORKERS TOLERANCE MAX_VERTICES"
 . "$(dirname "$0")/bench-results.sh"
-if [ -n "${TOLERANCE:-}" ]; then
+if [ -n "${TOLERANCE:-}" ] && [ -n "${MAX_VERTICES:-}" ]; then
+  bench_results "detect-tolerance-$TOLERANCE-$MAX_VERTICES" \
+    "Detection after attacks at compression.tolerance $TOLERANCE, up to $MAX_VERTICES control vertices" "$@"
+elif [ -n "${TOLERANCE:-}" ]; then
   bench_results "detect-tolerance-$TOLERANCE" "Detection after attacks at compression.tolerance $TOLERANCE" "$@"
 else
   bench_results detect "Detection after attacks: verdicts over the shared CAD parts" "$@"
@@ -42,6 +47,8 @@ W=$(realpath "$W")
 config() {  # config DIR
   local compression=""
   [ -z "${TOLERANCE:-}" ] || compression=", \"compression\": {\"tolerance\": $TOLERANCE}"
+  [ -z "${TOLERANCE:-}" ] || [ -z "${MAX_VERTICES:-}" ] || compression=", \"compression\": {\"tolerance\": $TOLERANCE,
+ \"max_vertices\": $MAX_VERTICES}, \"watermark\": {\"max_vertices\": $MAX_VERTICES}"
   cat >"$1/meshmarkd.json" <<EOF
 {"home": "home", "drop_dir": "drop", "output_dir": "out", "workers": $WORKERS, "log_level": "warn",
  "output_format": "off"$compression}
