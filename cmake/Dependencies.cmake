@@ -12,6 +12,13 @@ find_package(PNG REQUIRED)
 find_package(ZLIB REQUIRED)
 
 pkg_check_modules(SODIUM REQUIRED IMPORTED_TARGET libsodium)
+# lib3mf 1.x (3MF reading and writing), its C interface. Not through its pkg-config file, which
+# names -lzip although the shared library already links it (and libzip-dev is not needed).
+find_path(LIB3MF_INCLUDE_DIR Model/COM/NMR_DLLInterfaces.h PATH_SUFFIXES lib3mf REQUIRED)
+find_library(LIB3MF_LIB 3MF REQUIRED)
+add_library(mm_lib3mf INTERFACE)
+target_include_directories(mm_lib3mf SYSTEM INTERFACE ${LIB3MF_INCLUDE_DIR})
+target_link_libraries(mm_lib3mf INTERFACE ${LIB3MF_LIB})
 
 # OpenMesh: Debian ships headers and libs without a usable CMake config.
 find_path(OPENMESH_INCLUDE_DIR OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh REQUIRED)

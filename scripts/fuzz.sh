@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Fuzzes every reader of outside bytes (tests/fuzz: STL/OBJ/OFF/PLY, the .mmc stream, the config
+# Fuzzes every reader of outside bytes (tests/fuzz: STL/OBJ/OFF/PLY/3MF, the .mmc stream, the config
 # loader, copy records) with libFuzzer under AddressSanitizer and UndefinedBehaviorSanitizer.
 # Builds with clang in build-fuzz/ (FUZZ_BUILD_DIR), seeds each corpus from the shared meshes,
 # a sample part and its stream, the example config and a copy record that build/'s meshmark
@@ -36,9 +36,10 @@ if [ ! -f "$C/ready" ]; then
   "$MM" decompress "$T/part.mmc" "$T/part.stl" >/dev/null
   "$MM" decompress "$T/part.mmc" "$T/part.obj" >/dev/null
   "$MM" decompress "$T/part.mmc" "$T/part.ply" >/dev/null
+  "$MM" decompress "$T/part.mmc" "$T/part.3mf" >/dev/null
   "$MM" keygen "$T/k.key" >/dev/null
   "$MM" embed -m fuzz "$T/part.mmc" "$T/k.key" "$T/copy.mmc" >/dev/null
-  seed_mesh "$T/part.stl" 00; seed_mesh "$T/part.obj" 01; seed_mesh "$T/part.off" 02; seed_mesh "$T/part.ply" 03
+  seed_mesh "$T/part.stl" 00; seed_mesh "$T/part.obj" 01; seed_mesh "$T/part.off" 02; seed_mesh "$T/part.ply" 03; seed_mesh "$T/part.3mf" 04
   for f in ../shared/data/meshes/*.{stl,off,obj,ply}; do
     [ -f "$f" ] || continue
     case "${f##*.}" in stl) seed_mesh "$f" 00 ;; obj) seed_mesh "$f" 01 ;; off) seed_mesh "$f" 02 ;; ply) seed_mesh "$f" 03 ;; esac

@@ -24,13 +24,12 @@ std::string lower_extension(const std::string& path) {
 bool is_stream_path(const std::string& path) { return lower_extension(path) == "mmc"; }
 
 bool is_mesh_path(const std::string& path) {
-  const std::string e = lower_extension(path);
-  return e == "stl" || e == "obj" || e == "off" || e == "ply";
+  return is_mesh_format(lower_extension(path));
 }
 
 InputFile load_input(const std::string& path) {
   if (!is_stream_path(path) && !is_mesh_path(path))
-    throw InputError(path, "unknown file type (expected .stl, .obj, .off, .ply or .mmc)");
+    throw InputError(path, "unknown file type (expected " + mesh_format_list() + ", or .mmc)");
   InputFile in;
   const std::vector<std::uint8_t> bytes = read_file_bytes(path);
   in.sha256 = sha256_hex(bytes.data(), bytes.size());
@@ -63,7 +62,7 @@ void write_output(const Mesh& mesh, const std::string& path, int quant_bits,
   } else if (is_mesh_path(path)) {
     write_mesh(mesh, path);
   } else {
-    throw InputError(path, "unknown output type (expected .stl, .obj, .off, .ply or .mmc)");
+    throw InputError(path, "unknown output type (expected " + mesh_format_list() + ", or .mmc)");
   }
 }
 

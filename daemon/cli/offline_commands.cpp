@@ -49,7 +49,7 @@ void add_sample_command(CLI::App& app) {
     for (const auto& p : parts)
       if (p.name == name) {
         if (!is_mesh_path(a->out))
-          throw InputError(a->out, "unknown output type (expected .stl, .obj, .off or .ply)");
+          throw InputError(a->out, "unknown output type (expected " + mesh_format_list() + ")");
         write_mesh(p.mesh, a->out);
         std::cout << a->out << ": " << p.name << ", " << p.mesh.num_vertices() << " vertices, "
                   << p.mesh.num_faces() << " faces\n";
@@ -136,7 +136,7 @@ void add_keygen_command(CLI::App& app) {
 void add_offline_commands(CLI::App& app) {
   auto* info = app.add_subcommand("info", "Print vertex and face counts of a mesh");
   auto path = std::make_shared<std::string>();
-  info->add_option("mesh", *path, "mesh file (STL, OBJ, OFF, PLY)")->required();
+  info->add_option("mesh", *path, "mesh file (STL, OBJ, OFF, PLY, 3MF)")->required();
   info->callback([path] {
     auto m = read_mesh(*path);
     std::cout << m.num_vertices() << " vertices, " << m.num_faces() << " faces\n";

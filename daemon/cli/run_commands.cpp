@@ -7,6 +7,7 @@
 
 #include "cli/commands.h"
 #include "keys/keys.h"
+#include "meshio/read_mesh.h"
 #include "service/config.h"
 #include "service/daemon.h"
 #include "service/handlers.h"
@@ -78,9 +79,9 @@ void add_run_commands(CLI::App& app) {
     if (protect) {
       cmd->add_option("--customer", o->customer, "customer name")->required();
       cmd->add_option("--format", o->format, "output format (default: output_format of the config at run time)")
-          ->check(CLI::IsMember({"stl", "obj", "off", "ply"}));
+          ->check(CLI::IsMember(mesh_formats()));
     }
-    cmd->add_option("files", o->files, "mesh files (STL, OBJ, OFF, PLY)")->required()->check(CLI::ExistingFile);
+    cmd->add_option("files", o->files, "mesh files (STL, OBJ, OFF, PLY, 3MF)")->required()->check(CLI::ExistingFile);
     cmd->callback([o, protect] { submit(*o, protect); });
   }
 

@@ -1,5 +1,7 @@
 #include "service/config.h"
 
+#include "meshio/read_mesh.h"
+
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -174,7 +176,11 @@ Config parse_config(const std::string& text, const std::string& source, const st
   c.integer64(j, "", "max_input_bytes", cfg.max_input_bytes, 0, 1ll << 40);
   c.integer64(j, "", "max_triangles", cfg.max_triangles, 0, 1ll << 32);
   c.boolean(j, "", "use_inotify", cfg.use_inotify);
-  c.string(j, "", "output_format", cfg.output_format, {"same", "stl", "obj", "off", "ply"});
+  {
+    std::set<std::string> formats{"same"};
+    formats.insert(mesh_formats().begin(), mesh_formats().end());
+    c.string(j, "", "output_format", cfg.output_format, formats);
+  }
   c.string(j, "", "log_level", cfg.log_level, {"trace", "debug", "info", "warn", "error", "critical", "off"});
   if (j.contains("log_file")) {
     std::string lf;

@@ -47,9 +47,9 @@ std::string format_of(const std::string& name, bool allow_stream = false) {
   std::string ext = lower(fs::path(name).extension().string());
   if (!ext.empty()) ext.erase(0, 1);
   if (allow_stream && ext == "mmc") return ext;
-  if (ext != "stl" && ext != "obj" && ext != "off" && ext != "ply")
-    throw PermanentError(name + ": unsupported format \"" + ext + "\" (expected .stl, .obj, .off or .ply" +
-                         (allow_stream ? std::string(" or a .mmc stream)") : std::string(")")));
+  if (!is_mesh_format(ext))
+    throw PermanentError(name + ": unsupported format \"" + ext + "\" (expected " + mesh_format_list() +
+                         (allow_stream ? std::string(", or a .mmc stream)") : std::string(")")));
   return ext;
 }
 
@@ -122,7 +122,7 @@ std::vector<std::uint8_t> input_bytes(store::Store& st, const json& p, const sto
 }
 
 Mesh parse_input(const std::vector<std::uint8_t>& bytes, const std::string& name,
-                 std::map<std::string, std::string>* stream_metadata = nullptr) {
+                 std::map<std::string, std::string>* stream_metadata = nullptr, ReadReport* report = nullptr) {
   std::string fmt = format_of(name, stream_metadata != nullptr);
   try {
     if (fmt == "mmc") {
@@ -130,7 +130,7 @@ Mesh parse_input(const std::vector<std::uint8_t>& bytes, const std::string& name
       *stream_metadata = d.metadata;
       return d.mesh;
     }
-    return parse_mesh(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), fmt, name);
+    return parse_mesh(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), fmt, name, report);
   } catch (const InputError& e) {
     throw PermanentError(e.what());
   }
@@ -306,11 +306,12 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
 
   std::string sha;
   auto bytes = input_bytes(st, p, job, &sha, ctx.config);
-  Mesh mesh = parse_input(bytes, name);
+  ReadReport read;
+  Mesh mesh = parse_input(bytes, name, nullptr, &read);
   check_triangles(mesh, name, cfg);
   std::string in_format = format_of(name);
   if (out_format.empty()) out_format = cfg.output_format == "same" ? in_format : cfg.output_format;
-  if (out_format != "stl" && out_format != "obj" && out_format != "off" && out_format != "ply")
+  if (!is_mesh_format(out_format))
     throw PermanentError("job " + std::to_string(job.id) + ": unsupported output_format \"" + out_format + "\"");
 
   LoadedAsset la = get_or_prepare(st, sha, bytes, name, mesh, cfg, refused);
@@ -369,7 +370,8 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   const std::string stream_path = base + ".mmc", out = base + "." + out_format;
   std::string decoded_bytes;
   try {
-    decoded_bytes = mesh_file_bytes(files.decoded, out);
+    // A copy keeps the part's unit where both formats state one (3MF).
+    decoded_bytes = mesh_file_bytes(files.decoded, out, WriteOptions{read.unit});
   } catch (const InputError& e) {
     throw PermanentError(name + ": cannot write the decoded copy: " + e.what());
   }
@@ -399,9 +401,11 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   nc.nonce.assign(nonce.begin(), nonce.end());
   nc.payload_hex = phex;
   nc.params_json = jobs::copy_params_json(ws, la.row.params_key, la.row.basis_blob);
+  json decoded_file{{"role", "decoded"}, {"path", out},     {"sha256", out_sha},
+                    {"format", out_format}, {"levels", prep.levels}, {"vertices", files.decoded.num_vertices()}};
+  if (out_format == "3mf") decoded_file["unit"] = read.unit.empty() ? "millimeter" : read.unit;
   nc.outputs_json =
-      json{{"files", json::array({json{{"role", "decoded"}, {"path", out}, {"sha256", out_sha}, {"format", out_format},
-                                       {"levels", prep.levels}, {"vertices", files.decoded.num_vertices()}},
+      json{{"files", json::array({decoded_file,
                                   json{{"role", "stream"}, {"path", stream_path}, {"sha256", stream_sha}, {"format", "mmc"},
                                        {"quant_bits", ss.quant_bits}, {"bytes", files.stream.size()}}})}}
           .dump();

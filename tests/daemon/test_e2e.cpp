@@ -523,6 +523,44 @@ TEST_F(E2E, CopiesLeakedAsIssuedAreAttributed) {
   }
 }
 
+// A 3MF part (in inches) gives 3MF copies in inches under output_format "same"; the leaked 3MF
+// copy and the same copy converted to STL are both traced to their customer.
+TEST_F(E2E, ThreeMfPartsGiveThreeMfCopiesInTheirUnitAndTheirLeaksAreTraced) {
+  MM_REQUIRE_SHARED_MESHES();
+  write_config({{"output_format", "same"}, {"watermark", {{"message_bits", 16}}}});
+  const fs::path part = dir / "abc7.3mf";
+  mm::write_mesh(mm::read_mesh(mm::test::shared_mesh("abc7.stl")), part.string(), mm::WriteOptions{"inch"});
+  for (const char* c : {"alpha", "beta"}) ASSERT_EQ(meshmark_with_config("submit protect --customer " + std::string(c) + " " + part.string()), 0);
+  run_until_empty();
+  auto st = store();
+  std::map<std::string, std::string> customer_of;  // suspect file name -> customer
+  for (const char* c : {"alpha", "beta"}) {
+    const fs::path copy = output_of(*st, c, "abc7.3mf");
+    ASSERT_FALSE(copy.empty()) << c << log();
+    EXPECT_EQ(copy.extension(), ".3mf");
+    mm::ReadReport report;
+    const mm::Mesh m = mm::read_mesh(copy.string(), &report);
+    EXPECT_EQ(report.unit, "inch");
+    for (const auto& cp : st->list_copies())
+      for (const auto& f : json::parse(cp.outputs_json)["files"])
+        if (f["path"] == copy.string()) {
+          EXPECT_EQ(f["unit"], "inch");
+        }
+    const fs::path stl = dir / (std::string("converted-") + c + ".stl");
+    mm::write_mesh(m, stl.string());
+    customer_of[copy.filename().string()] = customer_of[stl.filename().string()] = c;
+    ASSERT_EQ(meshmark_with_config("submit detect " + copy.string() + " " + stl.string()), 0);
+  }
+  run_until_empty();
+  const auto dets = st->list_detections();
+  ASSERT_EQ(dets.size(), 4u);
+  for (const auto& det : dets) {
+    EXPECT_EQ(det.verdict, "attributed") << det.suspect_name << " " << det.details_json.substr(0, 400);
+    ASSERT_TRUE(det.customer_id.has_value()) << det.suspect_name;
+    EXPECT_EQ(st->get_customer(*det.customer_id)->name, customer_of[det.suspect_name]) << det.suspect_name;
+  }
+}
+
 // A copy's mark found, but its payload decoded differently from the record (here: the record's
 // payload changed by one bit after issue): the mark names the copy, and the detection reports
 // the payload it decoded, one bit off the record's.

@@ -13,6 +13,10 @@ Mesh parse_stl(std::string_view bytes, const std::string& source, ReadReport& re
 Mesh parse_obj(std::string_view bytes, const std::string& source, ReadReport& report);
 Mesh parse_off(std::string_view bytes, const std::string& source, ReadReport& report);
 Mesh parse_ply(std::string_view bytes, const std::string& source, ReadReport& report);
+Mesh parse_3mf(std::string_view bytes, const std::string& source, ReadReport& report);
+
+// A 3MF package holding the mesh as one object in `unit` ("" = millimeter); path names it in errors.
+std::string three_mf_bytes(const Mesh& mesh, const std::string& unit, const std::string& path);
 
 // Throws InputError unless all three are finite; what names the item ("vertex 12").
 void check_finite(const double* xyz, const std::string& source, const std::string& what);

@@ -82,6 +82,23 @@ void check_finite(const double* xyz, const std::string& source, const std::strin
 }
 }  // namespace formats
 
+const std::vector<std::string>& mesh_formats() {
+  static const std::vector<std::string> formats{"stl", "obj", "off", "ply", "3mf"};
+  return formats;
+}
+
+bool is_mesh_format(const std::string& extension) {
+  const auto& f = mesh_formats();
+  return std::find(f.begin(), f.end(), extension) != f.end();
+}
+
+std::string mesh_format_list() {
+  const auto& f = mesh_formats();
+  std::string s;
+  for (std::size_t i = 0; i < f.size(); ++i) s += (i == 0 ? "" : i + 1 == f.size() ? " or " : ", ") + f[i];
+  return s;
+}
+
 Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::string& source,
                 ReadReport* report) {
   ReadReport local;
@@ -97,8 +114,10 @@ Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::st
     mesh = formats::parse_off(bytes, source, r);
   else if (format == "ply")
     mesh = formats::parse_ply(bytes, source, r);
+  else if (format == "3mf")
+    mesh = formats::parse_3mf(bytes, source, r);
   else
-    throw InputError(source, "unknown mesh format \"" + format + "\" (expected stl, obj, off or ply)");
+    throw InputError(source, "unknown mesh format \"" + format + "\" (expected " + mesh_format_list() + ")");
   if (mesh.num_vertices() == 0) throw InputError(source, "no vertices");
   size_t raw_faces = mesh.faces.size();
   if (raw_faces == 0) throw InputError(source, "no faces");
@@ -111,8 +130,8 @@ Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::st
 
 Mesh read_mesh(const std::string& path, ReadReport* report) {
   std::string ext = lower_extension(path);
-  if (ext != ".stl" && ext != ".obj" && ext != ".off" && ext != ".ply")
-    throw InputError(path, "unknown mesh format \"" + ext + "\" (expected .stl, .obj, .off or .ply)");
+  if (ext.empty() || !is_mesh_format(ext.substr(1)))
+    throw InputError(path, "unknown mesh format \"" + ext + "\" (expected " + mesh_format_list() + ")");
   std::string bytes = load_file(path);
   return parse_mesh(bytes, ext.substr(1), path, report);
 }

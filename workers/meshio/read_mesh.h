@@ -1,5 +1,5 @@
 // Reading and writing meshes: STL (binary/ASCII, duplicate vertices welded), OBJ, OFF, PLY
-// (ASCII and binary). Hand-written strict parsers: OpenMesh's readers narrow coordinates to
+// (ASCII and binary), and 3MF through lib3mf. Hand-written strict parsers: OpenMesh's readers narrow coordinates to
 // float and accept truncated or malformed files silently (see docs/mesh-io.md), which the
 // watermark cannot afford. Every failure throws InputError naming the source and the reason.
 //
@@ -11,38 +11,51 @@
 #pragma once
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "meshio/mesh.h"
 
 namespace mm {
 
 struct ReadReport {
-  std::string format;                // "stl-binary", "stl-ascii", "obj", "off", "ply-ascii", "ply-binary"
+  std::string format;                // "stl-binary", "stl-ascii", "obj", "off", "ply-ascii", "ply-binary", "3mf"
+  std::string unit;                  // the file's length unit where it states one (3MF: "millimeter", ...), else ""
+  int objects = 1;                   // 3MF: build items read (all of them, concatenated in build order)
   int welded_vertices = 0;           // STL corners merged into an earlier vertex with equal coordinates
   int collapsed_faces = 0;           // faces that listed a vertex twice in a row; the repeat was removed
   int degenerate_faces_dropped = 0;  // faces with < 3 distinct vertices (or a vertex repeated apart)
   int unreferenced_vertices = 0;     // kept (vertex order matters), but no face uses them
 };
 
-// Reads by extension (.stl .obj .off .ply, case-insensitive). Throws InputError for missing,
+// The formats read_mesh reads and write_mesh writes, as lower-case extensions without the dot.
+const std::vector<std::string>& mesh_formats();
+bool is_mesh_format(const std::string& extension);
+// "stl, obj, off, ply or 3mf", for messages.
+std::string mesh_format_list();
+
+// Reads by extension (.stl .obj .off .ply .3mf, case-insensitive). Throws InputError for missing,
 // empty, truncated or malformed files, NaN/Inf coordinates, absurd counts, indices out of range,
 // unknown formats, and files with no (non-degenerate) face.
 Mesh read_mesh(const std::string& path, ReadReport* report = nullptr);
 
-// The same from bytes already in memory (an upload, a blob); format is "stl", "obj", "off" or
-// "ply"; source names the data in error messages.
+// The same from bytes already in memory (an upload, a blob); format is one of mesh_formats();
+// source names the data in error messages.
 Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::string& source,
                 ReadReport* report = nullptr);
 
 // Writes by extension: .stl (binary, float32 coordinates, polygons fan-triangulated), .obj, .off,
-// .ply (ASCII, doubles in shortest round-trip form, so reading back gives identical positions).
+// .ply (ASCII, doubles in shortest round-trip form, so reading back gives identical positions),
+// .3mf (float32 coordinates, polygons fan-triangulated, one object, in options.unit).
 // Written to a temporary file in the same folder, fsynced, then renamed over path: a failure
 // leaves nothing half-written. Creases and corners are not stored by these formats.
 // Throws InputError(path, reason) for an invalid mesh or an I/O failure.
-void write_mesh(const Mesh& mesh, const std::string& path);
+struct WriteOptions {
+  std::string unit;  // 3MF: the length unit (ReadReport::unit's names); "" = millimeter
+};
+void write_mesh(const Mesh& mesh, const std::string& path, const WriteOptions& options = {});
 // The bytes write_mesh writes to `path` (format from its extension), without writing them:
 // InputError for an unknown format or a mesh that cannot be written.
-std::string mesh_file_bytes(const Mesh& mesh, const std::string& path);
+std::string mesh_file_bytes(const Mesh& mesh, const std::string& path, const WriteOptions& options = {});
 
 // A double as the text writers print it: the shortest text that reads back to the same value
 // (std::to_chars). Cache keys and records name their parameters with it too.

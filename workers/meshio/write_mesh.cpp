@@ -11,6 +11,7 @@
 
 #include <Eigen/Geometry>
 
+#include "meshio/formats.h"
 #include "meshio/read_mesh.h"
 #include "support/atomic_file.h"
 
@@ -143,19 +144,22 @@ void atomic_write(const std::string& path, const std::string& bytes) {
 
 }  // namespace
 
-std::string mesh_file_bytes(const Mesh& mesh, const std::string& path) {
+std::string mesh_file_bytes(const Mesh& mesh, const std::string& path, const WriteOptions& options) {
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  if (ext != ".stl" && ext != ".obj" && ext != ".off" && ext != ".ply")
-    throw InputError(path, "unknown mesh format \"" + ext + "\" (expected .stl, .obj, .off or .ply)");
+  if (ext.empty() || !is_mesh_format(ext.substr(1)))
+    throw InputError(path, "unknown mesh format \"" + ext + "\" (expected " + mesh_format_list() + ")");
   check_writable(mesh, path);
   return ext == ".stl" ? stl_bytes(mesh, path)
          : ext == ".obj" ? obj_text(mesh)
          : ext == ".off" ? off_text(mesh)
-                         : ply_text(mesh);
+         : ext == ".ply" ? ply_text(mesh)
+                         : formats::three_mf_bytes(mesh, options.unit, path);
 }
 
-void write_mesh(const Mesh& mesh, const std::string& path) { atomic_write(path, mesh_file_bytes(mesh, path)); }
+void write_mesh(const Mesh& mesh, const std::string& path, const WriteOptions& options) {
+  atomic_write(path, mesh_file_bytes(mesh, path, options));
+}
 
 std::string shortest_text(double d) {
   std::string s;
