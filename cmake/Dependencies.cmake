@@ -16,6 +16,9 @@ pkg_check_modules(SODIUM REQUIRED IMPORTED_TARGET libsodium)
 # names -lzip although the shared library already links it (and libzip-dev is not needed).
 find_path(LIB3MF_INCLUDE_DIR Model/COM/NMR_DLLInterfaces.h PATH_SUFFIXES lib3mf REQUIRED)
 find_library(LIB3MF_LIB 3MF REQUIRED)
+# tinygltf (compiled, Debian's libtinygltf-dev) and libdraco for glTF/GLB and their Draco meshes.
+find_package(TinyGLTF REQUIRED)
+find_package(draco REQUIRED)
 add_library(mm_lib3mf INTERFACE)
 target_include_directories(mm_lib3mf SYSTEM INTERFACE ${LIB3MF_INCLUDE_DIR})
 target_link_libraries(mm_lib3mf INTERFACE ${LIB3MF_LIB})

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Fuzzes every reader of outside bytes (tests/fuzz: STL/OBJ/OFF/PLY/3MF, the .mmc stream, the config
-# loader, copy records) with libFuzzer under AddressSanitizer and UndefinedBehaviorSanitizer.
+# Fuzzes every reader of outside bytes (tests/fuzz: STL/OBJ/OFF/PLY/3MF/GLB/glTF, the .mmc
+# stream, the config loader, copy records) with libFuzzer under AddressSanitizer and UndefinedBehaviorSanitizer.
 # Builds with clang in build-fuzz/ (FUZZ_BUILD_DIR), seeds each corpus from the shared meshes,
 # a sample part and its stream, the example config and a copy record that build/'s meshmark
 # writes (MESHMARK), and runs each target SECONDS (default 30). A finding is left in
@@ -37,9 +37,12 @@ if [ ! -f "$C/ready" ]; then
   "$MM" decompress "$T/part.mmc" "$T/part.obj" >/dev/null
   "$MM" decompress "$T/part.mmc" "$T/part.ply" >/dev/null
   "$MM" decompress "$T/part.mmc" "$T/part.3mf" >/dev/null
+  "$MM" decompress "$T/part.mmc" "$T/part.glb" >/dev/null
+  "$MM" decompress "$T/part.mmc" "$T/part.gltf" >/dev/null
   "$MM" keygen "$T/k.key" >/dev/null
   "$MM" embed -m fuzz "$T/part.mmc" "$T/k.key" "$T/copy.mmc" >/dev/null
   seed_mesh "$T/part.stl" 00; seed_mesh "$T/part.obj" 01; seed_mesh "$T/part.off" 02; seed_mesh "$T/part.ply" 03; seed_mesh "$T/part.3mf" 04
+  seed_mesh "$T/part.glb" 05; seed_mesh "$T/part.gltf" 06
   for f in ../shared/data/meshes/*.{stl,off,obj,ply}; do
     [ -f "$f" ] || continue
     case "${f##*.}" in stl) seed_mesh "$f" 00 ;; obj) seed_mesh "$f" 01 ;; off) seed_mesh "$f" 02 ;; ply) seed_mesh "$f" 03 ;; esac

@@ -118,7 +118,7 @@ void add_compress_commands(CLI::App& app) {
     a->o.coarsen = true;  // the command's job is the smallest stream; protect jobs keep the fast path
     auto* c = app.add_subcommand(
         "compress", "Fit a sharp-featured subdivision control polyhedron to a mesh, write a .mmc stream");
-    c->add_option("input", a->in, "mesh file (STL, OBJ, OFF, PLY, 3MF)")->required();
+    c->add_option("input", a->in, "mesh file (STL, OBJ, OFF, PLY, 3MF, glTF, GLB)")->required();
     c->add_option("output", a->out, "stream file to write (.mmc)")->required();
     c->add_option("--tolerance", a->o.tolerance,
                   "target symmetric Hausdorff distance relative to the bounding box diagonal")
@@ -316,7 +316,7 @@ void add_compress_commands(CLI::App& app) {
     auto a = std::make_shared<Args>();
     auto* c = app.add_subcommand("decompress", "Subdivide a .mmc stream and write the surface as a mesh");
     c->add_option("input", a->in, "stream file (.mmc)")->required();
-    c->add_option("output", a->out, "mesh file to write (STL, OBJ, OFF, PLY, 3MF)")->required();
+    c->add_option("output", a->out, "mesh file to write (STL, OBJ, OFF, PLY, 3MF, glTF, GLB)")->required();
     auto* lvl = c->add_option("--level", a->level, "subdivision level (default: the level it was fitted at)")
                     ->check(CLI::Range(0, 6));
     c->add_option("--faces", a->faces, "smallest level with at least this many triangles (at most level 6)")

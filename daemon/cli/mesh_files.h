@@ -1,4 +1,4 @@
-// Loading and writing the files the offline commands take: a mesh (STL, OBJ, OFF, PLY, 3MF) or a .mmc
+// Loading and writing the files the offline commands take: a mesh (STL, OBJ, OFF, PLY, 3MF, glTF, GLB) or a .mmc
 // stream, chosen by extension. The bytes are read once, so the hash recorded is the hash of what
 // was parsed.
 #pragma once

@@ -136,7 +136,7 @@ void add_keygen_command(CLI::App& app) {
 void add_offline_commands(CLI::App& app) {
   auto* info = app.add_subcommand("info", "Print vertex and face counts of a mesh");
   auto path = std::make_shared<std::string>();
-  info->add_option("mesh", *path, "mesh file (STL, OBJ, OFF, PLY, 3MF)")->required();
+  info->add_option("mesh", *path, "mesh file (STL, OBJ, OFF, PLY, 3MF, glTF, GLB)")->required();
   info->callback([path] {
     auto m = read_mesh(*path);
     std::cout << m.num_vertices() << " vertices, " << m.num_faces() << " faces\n";

@@ -81,7 +81,7 @@ void add_run_commands(CLI::App& app) {
       cmd->add_option("--format", o->format, "output format (default: output_format of the config at run time)")
           ->check(CLI::IsMember(mesh_formats()));
     }
-    cmd->add_option("files", o->files, "mesh files (STL, OBJ, OFF, PLY, 3MF)")->required()->check(CLI::ExistingFile);
+    cmd->add_option("files", o->files, "mesh files (STL, OBJ, OFF, PLY, 3MF, glTF, GLB)")->required()->check(CLI::ExistingFile);
     cmd->callback([o, protect] { submit(*o, protect); });
   }
 

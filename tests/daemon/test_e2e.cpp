@@ -523,37 +523,41 @@ TEST_F(E2E, CopiesLeakedAsIssuedAreAttributed) {
   }
 }
 
-// A 3MF part (in inches) gives 3MF copies in inches under output_format "same"; the leaked 3MF
-// copy and the same copy converted to STL are both traced to their customer.
-TEST_F(E2E, ThreeMfPartsGiveThreeMfCopiesInTheirUnitAndTheirLeaksAreTraced) {
+// A 3MF part (in inches) gives 3MF copies in inches under output_format "same", a GLB part GLB
+// copies; each leaked copy, and the same copy converted to STL, is traced to its customer.
+TEST_F(E2E, ThreeMfAndGlbPartsGiveCopiesInTheirFormatAndTheirLeaksAreTraced) {
   MM_REQUIRE_SHARED_MESHES();
   write_config({{"output_format", "same"}, {"watermark", {{"message_bits", 16}}}});
-  const fs::path part = dir / "abc7.3mf";
-  mm::write_mesh(mm::read_mesh(mm::test::shared_mesh("abc7.stl")), part.string(), mm::WriteOptions{"inch"});
-  for (const char* c : {"alpha", "beta"}) ASSERT_EQ(meshmark_with_config("submit protect --customer " + std::string(c) + " " + part.string()), 0);
+  const std::vector<std::pair<std::string, std::string>> parts{{"abc7.stl", "abc7.3mf"}, {"abc6.stl", "abc6.glb"}};
+  for (const auto& [shared, name] : parts) {
+    mm::write_mesh(mm::read_mesh(mm::test::shared_mesh(shared)), (dir / name).string(), mm::WriteOptions{"inch"});
+    for (const char* c : {"alpha", "beta"})
+      ASSERT_EQ(meshmark_with_config("submit protect --customer " + std::string(c) + " " + (dir / name).string()), 0);
+  }
   run_until_empty();
   auto st = store();
   std::map<std::string, std::string> customer_of;  // suspect file name -> customer
-  for (const char* c : {"alpha", "beta"}) {
-    const fs::path copy = output_of(*st, c, "abc7.3mf");
-    ASSERT_FALSE(copy.empty()) << c << log();
-    EXPECT_EQ(copy.extension(), ".3mf");
-    mm::ReadReport report;
-    const mm::Mesh m = mm::read_mesh(copy.string(), &report);
-    EXPECT_EQ(report.unit, "inch");
-    for (const auto& cp : st->list_copies())
-      for (const auto& f : json::parse(cp.outputs_json)["files"])
-        if (f["path"] == copy.string()) {
-          EXPECT_EQ(f["unit"], "inch");
-        }
-    const fs::path stl = dir / (std::string("converted-") + c + ".stl");
-    mm::write_mesh(m, stl.string());
-    customer_of[copy.filename().string()] = customer_of[stl.filename().string()] = c;
-    ASSERT_EQ(meshmark_with_config("submit detect " + copy.string() + " " + stl.string()), 0);
-  }
+  for (const auto& [shared, name] : parts)
+    for (const char* c : {"alpha", "beta"}) {
+      const fs::path copy = output_of(*st, c, name);
+      ASSERT_FALSE(copy.empty()) << c << " " << name << log();
+      EXPECT_EQ(copy.extension(), fs::path(name).extension());
+      mm::ReadReport report;
+      const mm::Mesh m = mm::read_mesh(copy.string(), &report);
+      EXPECT_EQ(report.unit, name.find(".3mf") != std::string::npos ? "inch" : "meter");
+      for (const auto& cp : st->list_copies())
+        for (const auto& f : json::parse(cp.outputs_json)["files"])
+          if (f["path"] == copy.string()) {
+            EXPECT_EQ(f.value("unit", "none"), name.find(".3mf") != std::string::npos ? "inch" : "none");
+          }
+      const fs::path stl = dir / ("converted-" + std::string(c) + "-" + name + ".stl");
+      mm::write_mesh(m, stl.string());
+      customer_of[copy.filename().string()] = customer_of[stl.filename().string()] = c;
+      ASSERT_EQ(meshmark_with_config("submit detect " + copy.string() + " " + stl.string()), 0);
+    }
   run_until_empty();
   const auto dets = st->list_detections();
-  ASSERT_EQ(dets.size(), 4u);
+  ASSERT_EQ(dets.size(), 8u);
   for (const auto& det : dets) {
     EXPECT_EQ(det.verdict, "attributed") << det.suspect_name << " " << det.details_json.substr(0, 400);
     ASSERT_TRUE(det.customer_id.has_value()) << det.suspect_name;

@@ -15,6 +15,11 @@ Mesh parse_off(std::string_view bytes, const std::string& source, ReadReport& re
 Mesh parse_ply(std::string_view bytes, const std::string& source, ReadReport& report);
 Mesh parse_3mf(std::string_view bytes, const std::string& source, ReadReport& report);
 
+// glTF 2.0 JSON (binary false; buffers embedded as data: URIs) or GLB (binary true).
+Mesh parse_gltf(std::string_view bytes, const std::string& source, ReadReport& report, bool binary);
+// One mesh, one node, float32 positions, uint32 indices of fanned triangles.
+std::string gltf_bytes(const Mesh& mesh, const std::string& path, bool binary);
+
 // A 3MF package holding the mesh as one object in `unit` ("" = millimeter); path names it in errors.
 std::string three_mf_bytes(const Mesh& mesh, const std::string& unit, const std::string& path);
 

@@ -83,7 +83,7 @@ void check_finite(const double* xyz, const std::string& source, const std::strin
 }  // namespace formats
 
 const std::vector<std::string>& mesh_formats() {
-  static const std::vector<std::string> formats{"stl", "obj", "off", "ply", "3mf"};
+  static const std::vector<std::string> formats{"stl", "obj", "off", "ply", "3mf", "glb", "gltf"};
   return formats;
 }
 
@@ -116,6 +116,8 @@ Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::st
     mesh = formats::parse_ply(bytes, source, r);
   else if (format == "3mf")
     mesh = formats::parse_3mf(bytes, source, r);
+  else if (format == "gltf" || format == "glb")
+    mesh = formats::parse_gltf(bytes, source, r, format == "glb");
   else
     throw InputError(source, "unknown mesh format \"" + format + "\" (expected " + mesh_format_list() + ")");
   if (mesh.num_vertices() == 0) throw InputError(source, "no vertices");

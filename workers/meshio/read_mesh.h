@@ -1,5 +1,6 @@
 // Reading and writing meshes: STL (binary/ASCII, duplicate vertices welded), OBJ, OFF, PLY
-// (ASCII and binary), and 3MF through lib3mf. Hand-written strict parsers: OpenMesh's readers narrow coordinates to
+// (ASCII and binary), 3MF through lib3mf, glTF 2.0 and GLB (also Draco-compressed) through
+// tinygltf and libdraco. Hand-written strict parsers: OpenMesh's readers narrow coordinates to
 // float and accept truncated or malformed files silently (see docs/mesh-io.md), which the
 // watermark cannot afford. Every failure throws InputError naming the source and the reason.
 //
@@ -18,9 +19,9 @@
 namespace mm {
 
 struct ReadReport {
-  std::string format;                // "stl-binary", "stl-ascii", "obj", "off", "ply-ascii", "ply-binary", "3mf"
-  std::string unit;                  // the file's length unit where it states one (3MF: "millimeter", ...), else ""
-  int objects = 1;                   // 3MF: build items read (all of them, concatenated in build order)
+  std::string format;                // "stl-binary", "stl-ascii", "obj", "off", "ply-ascii", "ply-binary", "3mf", "glb", "gltf"
+  std::string unit;                  // the file's length unit where it states one (3MF: "millimeter", ...; glTF: "meter"), else ""
+  int objects = 1;                   // 3MF: build items read; glTF: triangle primitives read (all, concatenated)
   int welded_vertices = 0;           // STL corners merged into an earlier vertex with equal coordinates
   int collapsed_faces = 0;           // faces that listed a vertex twice in a row; the repeat was removed
   int degenerate_faces_dropped = 0;  // faces with < 3 distinct vertices (or a vertex repeated apart)
@@ -45,7 +46,8 @@ Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::st
 
 // Writes by extension: .stl (binary, float32 coordinates, polygons fan-triangulated), .obj, .off,
 // .ply (ASCII, doubles in shortest round-trip form, so reading back gives identical positions),
-// .3mf (float32 coordinates, polygons fan-triangulated, one object, in options.unit).
+// .3mf (float32 coordinates, polygons fan-triangulated, one object, in options.unit), .glb and
+// .gltf (float32, fanned, one mesh; buffers embedded; coordinates written as they are).
 // Written to a temporary file in the same folder, fsynced, then renamed over path: a failure
 // leaves nothing half-written. Creases and corners are not stored by these formats.
 // Throws InputError(path, reason) for an invalid mesh or an I/O failure.

@@ -154,7 +154,8 @@ std::string mesh_file_bytes(const Mesh& mesh, const std::string& path, const Wri
          : ext == ".obj" ? obj_text(mesh)
          : ext == ".off" ? off_text(mesh)
          : ext == ".ply" ? ply_text(mesh)
-                         : formats::three_mf_bytes(mesh, options.unit, path);
+         : ext == ".3mf" ? formats::three_mf_bytes(mesh, options.unit, path)
+                         : formats::gltf_bytes(mesh, path, ext == ".glb");
 }
 
 void write_mesh(const Mesh& mesh, const std::string& path, const WriteOptions& options) {
