@@ -18,6 +18,7 @@ B=${FUZZ_BUILD_DIR:-build-fuzz}
 JOBS=${JOBS:-$(nproc)}
 TARGETS=${TARGETS:-"mesh stream config copy_record"}
 MM=$(realpath "${MESHMARK:-build/daemon/meshmark}")
+export LSAN_OPTIONS=suppressions=$PWD/tests/lsan-suppressions.txt  # leaks inside Debian libraries
 SAN="-fsanitize=address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer"
 CC=clang CXX=clang++ cmake -S . -B "$B" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMESHMARK_FUZZ=ON \
   -DCMAKE_CXX_FLAGS="-fsanitize=fuzzer-no-link $SAN" -DCMAKE_EXE_LINKER_FLAGS="$SAN" >/dev/null

@@ -14,6 +14,7 @@ FUZZ="mesh stream config copy_record"
 cmake -S . -B "$B" -DCMAKE_BUILD_TYPE=Asan >/dev/null
 cmake --build "$B" -j "$JOBS" --target $TESTS $(for f in $FUZZ; do echo "fuzz_$f"; done) >/dev/null
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+export LSAN_OPTIONS=suppressions=$PWD/tests/lsan-suppressions.txt  # leaks inside Debian libraries
 status=0
 for t in $TESTS; do
   bin=$(find "$B/tests" -name "$t" -type f | head -1)

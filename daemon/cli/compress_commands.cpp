@@ -19,6 +19,7 @@
 #include <mutex>
 
 #include "cli/commands.h"
+#include "cli/mesh_files.h"
 #include "codec/stream.h"
 #include "fitting/compress.h"
 #include "meshio/read_mesh.h"
@@ -330,7 +331,7 @@ void add_compress_commands(CLI::App& app) {
       const int level = a->faces > 0 ? -1 : (a->level >= 0 ? a->level : stream_levels(s, 3));
       Mesh m = a->faces > 0 ? decompress_to_triangle_count(s.mesh, a->faces) : decompress_to_level(s.mesh, level);
       const auto t2 = std::chrono::steady_clock::now();
-      if (ends_with(a->out, ".stl")) m = triangulate(m);
+      if (is_triangle_path(a->out)) m = triangulate(m);
       write_mesh(m, a->out);
       if (a->json) {
         // Decoding includes reading the file; neither includes writing the mesh.

@@ -23,6 +23,8 @@ std::string lower_extension(const std::string& path) {
 
 bool is_stream_path(const std::string& path) { return lower_extension(path) == "mmc"; }
 
+bool is_triangle_path(const std::string& path) { return stores_triangles_only(lower_extension(path)); }
+
 bool is_mesh_path(const std::string& path) {
   return is_mesh_format(lower_extension(path));
 }

@@ -1,5 +1,5 @@
-// Loading and writing the files the offline commands take: a mesh (STL, OBJ, OFF, PLY, 3MF, glTF, GLB) or a .mmc
-// stream, chosen by extension. The bytes are read once, so the hash recorded is the hash of what
+// Loading and writing the files the offline commands take: a mesh (STL, OBJ, OFF, PLY, 3MF,
+// glTF, GLB) or a .mmc stream, chosen by extension. The bytes are read once, so the hash recorded is the hash of what
 // was parsed.
 #pragma once
 #include <cstdint>
@@ -12,7 +12,8 @@
 namespace mm::cli {
 
 bool is_stream_path(const std::string& path);  // ends in .mmc (any case)
-bool is_mesh_path(const std::string& path);    // ends in .stl .obj .off .ply (any case)
+bool is_mesh_path(const std::string& path);    // ends in one of mesh_formats() (any case)
+bool is_triangle_path(const std::string& path);  // a mesh format that stores triangles only
 
 struct InputFile {
   Mesh mesh;          // the mesh, or the stream's decoded control polyhedron (creases, corners)

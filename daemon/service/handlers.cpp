@@ -350,7 +350,7 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
     // own signs still move a vertex past it is made again at its own, lower strength.
     for (int attempt = 0;; ++attempt) {
       Mesh marked = jobs::make_copy(prep, ck.key.bytes(), nonce, payload, ws);
-      files = jobs::make_copy_files(prep, marked, ss, out_format == "stl");
+      files = jobs::make_copy_files(prep, marked, ss, stores_triangles_only(out_format));
       cost = jobs::mark_cost(prep, files.decoded);
       if (cost.max <= mark_budget) break;
       if (attempt == 2)

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/temp_dir.h"
+#include "format_fixtures.h"
 #include "meshio/read_mesh.h"
 
 namespace mm {
@@ -16,22 +17,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-Mesh quad_and_triangle() {
-  Mesh m;
-  m.points.resize(5, 3);
-  m.points << 0, 0, 0, 10.1, 0, 0, 10.1, 20.3, 0, 0, 20.3, 0, 5, 30.7, 1.25;
-  m.faces = {{0, 1, 2, 3}, {3, 2, 4}};
-  return m;
-}
-
-std::string read_file(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(f), {}};
-}
-
 TEST(ThreeMf, WrittenMeshReadsBackAsFloatTrianglesInItsUnit) {
   const fs::path dir = test::scratch_dir("mm_3mf");
-  const Mesh m = quad_and_triangle();
+  const Mesh m = test::quad_and_triangle();
   for (const char* unit : {"", "inch", "micron"}) {
     const std::string path = (dir / (std::string("part-") + unit + ".3mf")).string();
     write_mesh(m, path, WriteOptions{unit});
@@ -115,18 +103,10 @@ TEST(ThreeMf, EveryBuildItemIsReadWithItsTransforms) {
 TEST(ThreeMf, DamagedOrEmptyPackagesAreRefusedByName) {
   const fs::path dir = test::scratch_dir("mm_3mf");
   const std::string good_path = (dir / "good.3mf").string();
-  write_mesh(quad_and_triangle(), good_path);
-  const std::string good = read_file(good_path);
+  write_mesh(test::quad_and_triangle(), good_path);
+  const std::string good = test::slurp(good_path);
   auto expect_refused = [&](const std::string& bytes, const std::string& name, const std::string& why) {
-    const fs::path p = dir / name;
-    std::ofstream(p, std::ios::binary) << bytes;
-    try {
-      read_mesh(p.string());
-      ADD_FAILURE() << name << " was accepted";
-    } catch (const InputError& e) {
-      EXPECT_EQ(e.source(), p.string());
-      EXPECT_NE(e.reason().find(why), std::string::npos) << name << ": " << e.what();
-    }
+    test::expect_refused(dir, bytes, name, why);
   };
   expect_refused(good.substr(0, good.size() / 2), "truncated.3mf", "not a readable 3MF file");
   expect_refused("PK\x03\x04 not really a zip", "junk.3mf", "not a readable 3MF file");
@@ -143,7 +123,7 @@ TEST(ThreeMf, DamagedOrEmptyPackagesAreRefusedByName) {
   ASSERT_EQ(NMR::lib3mf_writer_writetofileutf8(writer, empty.c_str()), LIB3MF_OK);
   NMR::lib3mf_release(writer);
   NMR::lib3mf_release(model);
-  expect_refused(read_file(empty), "no-items.3mf", "no build items");
+  expect_refused(test::slurp(empty), "no-items.3mf", "no build items");
 }
 
 }  // namespace

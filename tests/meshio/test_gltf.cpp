@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "common/temp_dir.h"
+#include "format_fixtures.h"
 #include "meshio/read_mesh.h"
 
 namespace mm {
@@ -19,22 +20,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-Mesh quad_and_triangle() {
-  Mesh m;
-  m.points.resize(5, 3);
-  m.points << 0, 0, 0, 10.1, 0, 0, 10.1, 20.3, 0, 0, 20.3, 0, 5, 30.7, 1.25;
-  m.faces = {{0, 1, 2, 3}, {3, 2, 4}};
-  return m;
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(f), {}};
-}
-
 TEST(Gltf, WrittenMeshReadsBackInBothForms) {
   const fs::path dir = test::scratch_dir("mm_gltf");
-  const Mesh m = quad_and_triangle();
+  const Mesh m = test::quad_and_triangle();
   for (const char* ext : {".glb", ".gltf"}) {
     const std::string path = (dir / (std::string("part") + ext)).string();
     write_mesh(m, path);
@@ -164,20 +152,12 @@ TEST(Gltf, ExternalFilesAreNeverOpenedAndDamageIsRefusedByName) {
       R"("count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,1]}],"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],)"
       R"("nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}]})";
   auto expect_refused = [&](const std::string& bytes, const std::string& name, const std::string& why) {
-    const fs::path p = dir / name;
-    std::ofstream(p, std::ios::binary) << bytes;
-    try {
-      read_mesh(p.string());
-      ADD_FAILURE() << name << " was accepted";
-    } catch (const InputError& e) {
-      EXPECT_EQ(e.source(), p.string());
-      EXPECT_NE(e.reason().find(why), std::string::npos) << name << ": " << e.what();
-    }
+    test::expect_refused(dir, bytes, name, why);
   };
   expect_refused(external, "external.gltf", "external file");
   const std::string glb_path = (dir / "good.glb").string();
-  write_mesh(quad_and_triangle(), glb_path);
-  const std::string good = slurp(glb_path);
+  write_mesh(test::quad_and_triangle(), glb_path);
+  const std::string good = test::slurp(glb_path);
   expect_refused(good.substr(0, good.size() - 7), "truncated.glb", "not a readable GLB file");
   expect_refused("{\"asset\":", "cut.gltf", "not a readable glTF file");
   // An accessor reaching past its buffer, and an index past the vertices.

@@ -92,6 +92,10 @@ bool is_mesh_format(const std::string& extension) {
   return std::find(f.begin(), f.end(), extension) != f.end();
 }
 
+bool stores_triangles_only(const std::string& extension) {
+  return extension == "stl" || extension == "3mf" || extension == "glb" || extension == "gltf";
+}
+
 std::string mesh_format_list() {
   const auto& f = mesh_formats();
   std::string s;

@@ -31,8 +31,10 @@ struct ReadReport {
 // The formats read_mesh reads and write_mesh writes, as lower-case extensions without the dot.
 const std::vector<std::string>& mesh_formats();
 bool is_mesh_format(const std::string& extension);
-// "stl, obj, off, ply or 3mf", for messages.
+// "stl, obj, off, ply, 3mf, glb or gltf", for messages.
 std::string mesh_format_list();
+// Whether the format stores triangles only (stl, 3mf, glb, gltf): its writer fans polygons.
+bool stores_triangles_only(const std::string& extension);
 
 // Reads by extension (.stl .obj .off .ply .3mf, case-insensitive). Throws InputError for missing,
 // empty, truncated or malformed files, NaN/Inf coordinates, absurd counts, indices out of range,
