@@ -92,7 +92,7 @@ void add_attack_commands(CLI::App& app) {
   auto* sub = command("subdivide", "Refine with Stam-Loop quad/triangle subdivision (creases of a .mmc input kept)",
                       [a](Mesh m, std::string& what) {
                         what = std::to_string(a->levels) + (a->linear ? " midpoint split(s)" : " subdivision level(s)");
-                        return a->linear ? attacks::subdivide_linear(std::move(m), a->levels) : subdivide(m, a->levels);
+                        return a->linear ? subdivide_linear(std::move(m), a->levels) : subdivide(m, a->levels);
                       });
   sub->add_option("-L,--levels", a->levels, "subdivision steps")->capture_default_str()->check(CLI::Range(1, 5));
   sub->add_flag("--linear", a->linear,

@@ -177,11 +177,4 @@ TEST(Attacks, AlphaWrapEnclosesThePartCloselyAndIsClosed) {
   EXPECT_THROW(mm::attacks::alpha_wrap(m, 0, 0.1), std::invalid_argument);
 }
 
-TEST(Attacks, MidpointSplitKeepsTheSurface) {
-  const mm::Mesh m = block();
-  const mm::Mesh s = mm::attacks::subdivide_linear(m, 1);
-  EXPECT_EQ(s.num_faces(), 4 * m.num_faces());
-  EXPECT_LT(mm::surface_distance(m, s).hausdorff_relative(), 1e-9);
-}
-
 }  // namespace

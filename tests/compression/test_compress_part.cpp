@@ -11,6 +11,9 @@
 namespace mm {
 namespace {
 
+// A tolerance the coarse flanged cylinder below meets only split.
+constexpr double kSplitTolerance = 0.002;
+
 const Mesh& part() {
   static const Mesh m = samples::sample_parts().at(0).mesh;
   return m;
@@ -79,6 +82,40 @@ TEST(CompressPart, TheStreamIsSearchedAmongThePolyhedraThatMetTheTolerance) {
   EXPECT_FALSE(c.stream.bytes.empty());
   EXPECT_EQ(c.candidates, static_cast<int>(c.fits.polyhedra.size()));
   EXPECT_EQ(c.control, c.fits.polyhedra.front().second);  // quick: the fewest vertices that met it
+}
+
+TEST(CompressPart, CoarseTessellationIsSplitWhenItsVerticesRunOut) {
+  // Twelve sectors: 30-degree facets, smooth to a 35-degree crease angle, which a subdivision
+  // surface through the part's own vertices rounds off by more than the tolerance.
+  samples::FlangedCylinder p;
+  p.sectors = 12;
+  p.edge_length = 6;
+  const Mesh coarse = samples::flanged_cylinder(p);
+  const MeasuredSurface measured(coarse);
+  PartOptions o;
+  o.fit.tolerance = kSplitTolerance;
+  o.fit.max_vertices = 20000;
+  o.max_splits = 0;
+  const PartFits whole = fit_part(coarse, measured, o, "coarse");
+  ASSERT_TRUE(whole.polyhedra.empty());
+  const CompressResult& r = whole.kept().result;
+  EXPECT_TRUE(r.all_vertices);
+  EXPECT_EQ(r.control.num_vertices(), coarse.num_vertices());
+  EXPECT_EQ(tolerance_miss_reason(r, o.fit), "with every vertex of the part (" + std::to_string(coarse.num_vertices()) +
+                                                 ") as a control vertex, under the budget of 20000");
+
+  o.max_splits = 2;
+  const PartFits split = fit_part(coarse, measured, o, "coarse");
+  ASSERT_FALSE(split.polyhedra.empty());
+  EXPECT_GE(split.kept().result.part_splits, 1);
+  EXPECT_GT(split.kept().result.control.num_vertices(), coarse.num_vertices());
+  // Met by the dense measurement against the part as given, not its split.
+  EXPECT_TRUE(decoded_within(measured, *split.polyhedra.front().second, o.fit.levels, o.fit.tolerance));
+
+  // A budget the part's own vertices already fill: no split.
+  o.fit.max_vertices = coarse.num_vertices();
+  const PartFits capped = fit_part(coarse, measured, o, "coarse");
+  EXPECT_EQ(capped.kept().result.part_splits, 0);
 }
 
 }  // namespace

@@ -428,5 +428,27 @@ TEST(Subdivision, RandomTopologyNeverCrashes) {
   EXPECT_GT(rejected, 10);
 }
 
+TEST(SubdivideLinear, SplitsAtMidpointsAndMovesNoVertex) {
+  for (const Mesh& m : {tetrahedron(), cube()}) {
+    const Mesh s = subdivide_linear(m, 1);
+    EXPECT_EQ(s.num_faces(), 4 * m.num_faces());
+    EXPECT_TRUE(s.creases.empty() && s.corners.empty());
+    EXPECT_EQ(s.points.topRows(m.num_vertices()), m.points);
+    // Every new vertex is an edge's midpoint or (on a quad) its face's centre.
+    std::vector<Eigen::RowVector3d> allowed;
+    for (const auto& [a, b] : unique_edges(m)) allowed.push_back(0.5 * (m.points.row(a) + m.points.row(b)));
+    for (const auto& f : m.faces) {
+      Eigen::RowVector3d c = Eigen::RowVector3d::Zero();
+      for (int v : f) c += m.points.row(v);
+      if (f.size() == 4) allowed.push_back(c / 4.0);
+    }
+    for (int v = m.num_vertices(); v < s.num_vertices(); ++v)
+      EXPECT_TRUE(std::any_of(allowed.begin(), allowed.end(),
+                              [&](const Eigen::RowVector3d& p) { return (p - s.points.row(v)).norm() < 1e-12; }))
+          << "vertex " << v;
+    EXPECT_EQ(s.num_vertices(), m.num_vertices() + static_cast<int>(allowed.size()));
+  }
+}
+
 }  // namespace
 }  // namespace mm

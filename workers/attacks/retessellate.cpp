@@ -119,17 +119,4 @@ Mesh alpha_wrap(const Mesh& mesh, double alpha, double offset) {
   return from_surface_mesh(wrap);
 }
 
-Mesh subdivide_linear(Mesh mesh, int levels) {
-  for (int level = 0; level < levels; ++level) {
-    // Crease edge points are midpoints, corners stay, a quad's face point is its centre.
-    mesh.creases = unique_edges(mesh);
-    mesh.corners.resize(static_cast<std::size_t>(mesh.num_vertices()));
-    std::iota(mesh.corners.begin(), mesh.corners.end(), 0);
-    mesh = subdivide(mesh, 1);
-  }
-  mesh.creases.clear();
-  mesh.corners.clear();
-  return mesh;
-}
-
 }  // namespace mm::attacks

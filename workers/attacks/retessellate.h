@@ -1,6 +1,6 @@
 // Attacks that give the surface a new connectivity, as a leaker's mesh tool does: isotropic
 // remeshing, simplification, re-extraction of a new surface around the part (a modelling tool's
-// voxel remesh), a midpoint split. Lengths are relative to the bounding-box diagonal. The input is
+// voxel remesh). (A midpoint split is subdivision's subdivide_linear.) Lengths are relative to the bounding-box diagonal. The input is
 // triangulated first; the results are triangle meshes. Deterministic: CGAL's algorithms use no
 // randomness here, so the same input gives the same mesh.
 #pragma once
@@ -20,10 +20,5 @@ Mesh simplify_edges(const Mesh& mesh, double keep_fraction);
 // CGAL::alpha_wrap_3: a watertight surface around the part, alpha and offset x diagonal (CGAL
 // 5.5's defaults for a close wrap: offset alpha / 30).
 Mesh alpha_wrap(const Mesh& mesh, double alpha, double offset);
-
-// Splits every triangle and quad into four at its edges' midpoints (and the quad's centre),
-// `levels` times: the same surface, four times the faces per level, no vertex moved. The result
-// has no crease tags.
-Mesh subdivide_linear(Mesh mesh, int levels);
 
 }  // namespace mm::attacks

@@ -8,6 +8,8 @@
 #include <new>
 #include <optional>
 
+#include "subdivision/subdivide.h"
+
 namespace mm {
 
 double thread_cpu_seconds() {
@@ -92,7 +94,7 @@ PartFits fit_part(const Mesh& part, const MeasuredSurface& measured, const PartO
     std::exception_ptr error;
     double cpu = 0;
   };
-  const auto fit_all = [&](const std::vector<double>& list, int at_once, bool fallback) {
+  const auto fit_all = [&](const std::vector<double>& list, int at_once, bool fallback, const Mesh& part) {
     std::vector<Outcome> done(list.size());
     const auto task = [&](int k) {
       const double c0 = thread_cpu_seconds();
@@ -132,26 +134,52 @@ PartFits fit_part(const Mesh& part, const MeasuredSurface& measured, const PartO
       }
     }
   };
-  fit_all(networks.distinct(options.angles), options.at_once, false);
+  fit_all(networks.distinct(options.angles), options.at_once, false, part);
   const auto met = [&out] {
     return std::any_of(out.fits.begin(), out.fits.end(),
                        [](const FitAtAngle& f) { return !f.result.candidates.empty(); });
   };
   for (const double angle : options.fallback_angles) {
     if (met()) break;
-    fit_all(networks.distinct({angle}), 1, true);
+    fit_all(networks.distinct({angle}), 1, true, part);
   }
   if (out.fits.empty()) {
     if (refusal) throw *refusal;
     throw InputError(source, "no crease angle could be fitted");
   }
-  if (!met() && options.extended_rounds > fit.max_rounds) {
-    const double angle = out.kept().angle;
+  // The closest fit again with `mesh` and no round limit; a better result replaces it (whether
+  // one did is returned).
+  const auto extend = [&](const Mesh& mesh, int splits) {
+    const FitAtAngle& closest = out.kept();
+    const double angle = closest.angle, error = closest.result.stats.hausdorff / closest.result.stats.diagonal;
     const std::size_t before = out.fits.size();
-    fit.max_rounds = options.extended_rounds;
-    fit_all({angle}, 1, true);
-    if (out.fits.size() > before) {  // the extended fit replaces the angle's first one
-      out.fits.erase(std::find_if(out.fits.begin(), out.fits.end(), [&](const FitAtAngle& f) { return f.angle == angle; }));
+    fit.max_rounds = kUnlimitedRounds;
+    fit_all({angle}, 1, true, mesh);
+    if (out.fits.size() == before) return false;
+    FitAtAngle& fresh = out.fits.back();
+    fresh.result.part_splits = splits;
+    const auto old = std::find_if(out.fits.begin(), out.fits.end() - 1,
+                                  [&](const FitAtAngle& f) { return f.angle == angle; });
+    if (!fresh.result.tolerance_met && fresh.result.stats.hausdorff / fresh.result.stats.diagonal >= error &&
+        splits > 0) {
+      out.fits.pop_back();  // a split that came no closer: the unsplit fit stands
+      return false;
+    }
+    if (old != out.fits.end() - 1) out.fits.erase(old);
+    return true;
+  };
+  if (!met() && options.extend) {
+    extend(part, 0);
+    Mesh split;
+    for (int s = 1; s <= options.max_splits && !met(); ++s) {
+      const CompressResult& r = out.kept().result;
+      if (!r.all_vertices || r.input_vertices >= fit.max_vertices) break;
+      try {
+        split = subdivide_linear(s == 1 ? part : split, 1);
+      } catch (const InputError&) {
+        break;  // not a manifold the split takes: the fit so far stands
+      }
+      if (!extend(split, s)) break;
     }
   }
   if (fit.coarsen) {

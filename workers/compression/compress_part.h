@@ -3,7 +3,8 @@
 //
 // fit_part fits the part at each angle whose crease network differs from the earlier angles'
 // (the same network gives the same fit); when none meets the tolerance, the fallback angles are
-// fitted in turn until one does. Every round is checked by the dense measurement (the one
+// fitted in turn until one does, then the closest goes on to the budget, on a finer split of the
+// part where its own vertices run out (PartOptions::extend, max_splits). Every round is checked by the dense measurement (the one
 // `meshmark compare` reports) unless the caller supplies its own check. compress_part then
 // searches the smallest stream among the polyhedra that met the tolerance (smallest_stream.h).
 #pragma once
@@ -26,10 +27,14 @@ struct PartOptions {
   CompressOptions fit;  // fit.angle_degrees is ignored: `angles` says which
   std::vector<double> angles{35.0};
   std::vector<double> fallback_angles;  // tried in turn while no fit meets the tolerance
-  // When no angle meets the tolerance in fit.max_rounds, the closest fit goes on to this many
-  // rounds (ending sooner at the tolerance or the budget): a tight tolerance needs more growth
-  // steps than the first rounds give. Not past fit.max_rounds: no more rounds.
-  int extended_rounds = 24;
+  // When no angle meets the tolerance in fit.max_rounds, the closest fit goes on until the
+  // tolerance or the budget (every round grows the polyhedron by 15 % or more, so the budget ends
+  // them): a tight tolerance needs more growth steps than the first rounds give. Off: no more rounds.
+  bool extend = true;
+  // When that fit holds every vertex of the part below the budget (a coarse tessellation: a
+  // subdivision surface through its vertices rounds its facets off), the part split at its edges'
+  // midpoints (the same surface, four times the faces) is fitted again, up to this many times.
+  int max_splits = 2;
   int at_once = 1;       // fits of the angles run at once (through `parallel`)
   ParallelFor parallel;  // empty: one after another on this thread
   StreamSearch stream;   // compress_part only; tolerance and levels are taken from `fit`

@@ -202,6 +202,11 @@ bool stopped_at_budget(const CompressResult& r, const CompressOptions& o) {
 
 std::string tolerance_miss_reason(const CompressResult& r, const CompressOptions& o) {
   if (stopped_at_budget(r, o)) return "within the control vertex budget of " + std::to_string(o.max_vertices);
+  if (r.all_vertices)
+    return "with every vertex of the part" +
+           (r.part_splits > 0 ? " split " + std::to_string(r.part_splits) + " time(s) at its edges' midpoints" : std::string()) +
+           " (" + std::to_string(r.input_vertices) + ") as a control vertex, under the budget of " +
+           std::to_string(o.max_vertices);
   return "in " + std::to_string(r.rounds) + " refinement rounds: " + std::to_string(r.control.num_vertices()) +
          " control vertices, under the budget of " + std::to_string(o.max_vertices);
 }
@@ -305,7 +310,9 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     double rel = 0;
     const int n = control.mesh.num_vertices();
     // The rounds' last: the round count, or the last of kRoundsAtBudget at the budget.
-    const bool last = round + 1 == o.max_rounds || (n >= o.max_vertices && at_budget + 1 >= kRoundsAtBudget);
+    // A control mesh that holds every vertex of the part cannot grow: its round is the last.
+    const bool whole = n >= mesh.num_vertices();
+    const bool last = round + 1 == o.max_rounds || (n >= o.max_vertices && at_budget + 1 >= kRoundsAtBudget) || whole;
     // `steer_only`: a coarse round's fit, which steers and is no result.
     const auto consider = [&](FitResult&& variant, bool steer_only) {
       const double error = variant.stats.hausdorff / variant.stats.diagonal;
@@ -404,6 +411,10 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     // At the budget, rounds only move vertices around (the importance keeps growing where the
     // error stays), which helps unevenly: a few of them, and the best is kept.
     if (n >= o.max_vertices && ++at_budget >= kRoundsAtBudget) break;
+    if (whole) {
+      out.all_vertices = true;
+      break;
+    }
     // Spend more vertices where the surface is still too far, and a few more overall.
     raise_importance(co.importance, result_error, o.tolerance * target.diagonal());
     // Grown from the smallest error so far: a round worse than an earlier one with fewer

@@ -43,6 +43,9 @@ class CandidateCheck {
 // Rounds fitted at the control vertex budget before the tolerance is given up (a round there
 // only moves vertices to where the error stays).
 constexpr int kRoundsAtBudget = 3;
+// A max_rounds that never ends the rounds: they end at the tolerance, at the budget (each round
+// grows the polyhedron by 15 % or more) or when the polyhedron holds every vertex of the part.
+constexpr int kUnlimitedRounds = 1 << 20;
 
 struct CompressOptions {
   double tolerance = 0.005;     // target symmetric Hausdorff distance / bounding box diagonal
@@ -110,6 +113,11 @@ struct CompressResult {
   // round that stayed above the tolerance (coarsen off; compress.cpp, "Coarse rounds").
   std::vector<int> round_levels;
   double angle_degrees = 35.0;  // the crease angle it was fitted at (options.angle_degrees)
+  // The rounds stopped because the control polyhedron held every vertex of the mesh it was
+  // fitted to (the decimation can give no more), below the budget.
+  bool all_vertices = false;
+  // Times the part was split at its edges' midpoints before this fit (compression/compress_part.h).
+  int part_splits = 0;
   int input_vertices = 0, sharp_edges = 0, corners = 0, patches = 0;
 };
 
@@ -152,7 +160,9 @@ std::vector<double> fallback_crease_angles();
 bool stopped_at_budget(const CompressResult& r, const CompressOptions& o);
 
 // Why a result misses the tolerance, for a message: "within the control vertex budget of B" when
-// stopped_at_budget, else "in R refinement rounds: n control vertices, under the budget of B".
+// stopped_at_budget; "with every vertex of the part [split S time(s) at its edges' midpoints] (N)
+// as a control vertex, under the budget of B" when all_vertices; else "in R refinement rounds: n
+// control vertices, under the budget of B".
 std::string tolerance_miss_reason(const CompressResult& r, const CompressOptions& o);
 
 // The sharp-feature network compress() fits to (sharp edges and corners, in `mesh`'s vertex

@@ -104,7 +104,7 @@ std::string PrepareParams::key() const {
   const CompressOptions& c = compression;
   return "prepare-v2;compress;verify=dense;tolerance=" + shortest_text(c.tolerance) + ";max_vertices=" + std::to_string(c.max_vertices) +
          ";levels=" + std::to_string(c.levels) + ";angle=" + shortest_text(c.angle_degrees) +
-         ";max_rounds=" + std::to_string(c.max_rounds) + ";extend=" + std::to_string(PartOptions{}.extended_rounds) +
+         ";max_rounds=" + std::to_string(c.max_rounds) + (PartOptions{}.extend ? ";extend=budget;splits=" + std::to_string(PartOptions{}.max_splits) : std::string()) +
          ";budget_rounds=" + std::to_string(kRoundsAtBudget) + (c.rail_quads ? ";quads=rail" : "") + rounds_schedule_key(c) + fit_sampling_key() +
          (c.seed != 1 ? ";seed=" + std::to_string(c.seed) : "") + fallback_key(fallback_angles) +
          (min_mark_vertices > 0 ? ";mark_min_vertices=" + std::to_string(min_mark_vertices) : "") +

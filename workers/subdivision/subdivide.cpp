@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
@@ -509,6 +510,19 @@ Mesh subdivide(const Mesh& control, int levels) {
   Steps st = build_steps(control, levels, &points);
   st.refined.points = std::move(points);
   return std::move(st.refined);
+}
+
+Mesh subdivide_linear(Mesh mesh, int levels) {
+  for (int level = 0; level < levels; ++level) {
+    // Crease edge points are midpoints, corners stay, a quad's face point is its centre.
+    mesh.creases = unique_edges(mesh);
+    mesh.corners.resize(static_cast<std::size_t>(mesh.num_vertices()));
+    std::iota(mesh.corners.begin(), mesh.corners.end(), 0);
+    mesh = subdivide(mesh, 1);
+  }
+  mesh.creases.clear();
+  mesh.corners.clear();
+  return mesh;
 }
 
 }  // namespace mm

@@ -68,4 +68,9 @@ Points apply_subdivision(const SubdivisionOperator& op, const Points& control_po
 // Same errors as build_subdivision except the limit on S.
 Mesh subdivide(const Mesh& control, int levels);
 
+// Splits every triangle and quad into four at its edges' midpoints (and the quad's centre),
+// `levels` times: the same surface, four times the faces per level, no vertex moved. The result
+// has no crease tags. Same errors as subdivide.
+Mesh subdivide_linear(Mesh mesh, int levels);
+
 }  // namespace mm
