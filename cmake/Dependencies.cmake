@@ -47,3 +47,13 @@ target_link_libraries(mm_spectra INTERFACE Eigen3::Eigen)
 
 # CGAL 5.5 is header-only; used for AABB-tree distances.
 find_package(CGAL REQUIRED)
+
+# OpenCASCADE 7.6 (STEP and IGES parts): its toolkits by name; the include folder is opencascade/.
+find_path(OCCT_INCLUDE_DIR STEPControl_Reader.hxx PATH_SUFFIXES opencascade REQUIRED)
+add_library(mm_occt INTERFACE)
+target_include_directories(mm_occt SYSTEM INTERFACE ${OCCT_INCLUDE_DIR})
+foreach(tk TKSTEP TKSTEPAttr TKSTEPBase TKSTEP209 TKIGES TKXSBase TKMesh TKBO TKPrim TKShHealing TKTopAlgo
+           TKGeomAlgo TKBRep TKGeomBase TKG3d TKG2d TKMath TKernel)
+  find_library(OCCT_${tk}_LIB ${tk} REQUIRED)
+  target_link_libraries(mm_occt INTERFACE ${OCCT_${tk}_LIB})
+endforeach()

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The main job, end to end, on sample parts the project makes itself (no ../shared needed):
 # installs what is missing, builds, starts the meshmarkd daemon on a temporary home and drop
-# folder, protects three parts for customers alice and bob (compress, watermark, write the .mmc
-# stream and the decoded mesh), leaks bob's decoded copy with noise, drops it and the unmarked
-# original into detect/ and prints the verdicts, and the signed evidence package the daemon writes
+# folder, protects three mesh parts and a STEP part for customers alice and bob (tessellate the
+# STEP part, compress, watermark, write the .mmc stream and the decoded mesh), leaks bob's decoded
+# copy and alice's copy of the STEP part with noise, drops them and an unmarked original into
+# detect/ and prints the verdicts, and the signed evidence package the daemon writes
 # for the attribution (verified); then stops the daemon with SIGTERM (drain).
 # DEMO_DIR=folder keeps everything there (default: a fresh temporary folder, printed at the end).
 set -euo pipefail
@@ -58,6 +59,9 @@ parts=(chamfered_block plate_with_holes flanged_cylinder)
 for p in "${parts[@]}"; do
   "$MM" sample "$p" "$D/parts/$p.off"
 done
+# A CAD part as a PDM vault holds it: STEP, written by OpenCASCADE, tessellated at intake.
+"$MM" sample drilled_block "$D/parts/drilled_block.step"
+"$MM" info "$D/parts/drilled_block.step"
 
 echo "== start meshmarkd"
 "$MMD" --config "$D/meshmarkd.json" &
@@ -73,9 +77,11 @@ for who in alice bob; do
     cp "$D/parts/$p.off" "$D/drop/protect/$who/.$p.off.tmp"
     mv "$D/drop/protect/$who/.$p.off.tmp" "$D/drop/protect/$who/$p.off"
   done
+  cp "$D/parts/drilled_block.step" "$D/drop/protect/$who/.drilled_block.step.tmp"
+  mv "$D/drop/protect/$who/.drilled_block.step.tmp" "$D/drop/protect/$who/drilled_block.step"
 done
-done_both() { [ "$(count "$D/drop/done/protect/alice")" -eq 3 ] && [ "$(count "$D/drop/done/protect/bob")" -eq 3 ]; }
-wait_for "6 protect jobs" 600 done_both
+done_both() { [ "$(count "$D/drop/done/protect/alice")" -eq 4 ] && [ "$(count "$D/drop/done/protect/bob")" -eq 4 ]; }
+wait_for "8 protect jobs" 900 done_both
 if [ -d "$D/drop/failed" ] && [ -n "$(find "$D/drop/failed" -type f)" ]; then
   echo "some jobs failed:"; find "$D/drop/failed" -name '*.json' -exec cat {} \;; exit 1
 fi
@@ -91,20 +97,25 @@ ls -l "$D/out/bob"
 echo "== bob's decoded flanged_cylinder leaks, with noise (0.0005 of the part's size)"
 leak=$(ls "$D"/out/bob/flanged_cylinder-*.stl)
 "$MM" attack noise "$leak" "$D/parts/leak.stl" --amplitude 0.0005 --seed 7
+echo "== alice's copy of the STEP part leaks as an STL file, with noise"
+"$MM" attack noise "$(ls "$D"/out/alice/drilled_block-*.stl)" "$D/parts/leak-step.stl" --amplitude 0.0005 --seed 8
 echo "== ... and, as a control, the unmarked original flanged_cylinder"
 mkdir -p "$D/drop/detect"
 cp "$D/parts/leak.stl" "$D/drop/detect/.leak.stl.tmp"
 mv "$D/drop/detect/.leak.stl.tmp" "$D/drop/detect/leak.stl"
 cp "$D/parts/flanged_cylinder.off" "$D/drop/detect/.original.off.tmp"
 mv "$D/drop/detect/.original.off.tmp" "$D/drop/detect/original.off"
-detected() { [ -f "$D/drop/done/detect/leak.stl.json" ] && [ -f "$D/drop/done/detect/original.off.json" ]; }
+cp "$D/parts/leak-step.stl" "$D/drop/detect/.leak-step.stl.tmp"
+mv "$D/drop/detect/.leak-step.stl.tmp" "$D/drop/detect/leak-step.stl"
+detected() { [ -f "$D/drop/done/detect/leak.stl.json" ] && [ -f "$D/drop/done/detect/original.off.json" ] &&
+             [ -f "$D/drop/done/detect/leak-step.stl.json" ]; }
 wait_for "the detect jobs" 300 detected
 
 echo "== verdicts"
 python3 - "$D/drop/done/detect" <<'EOF'
 import json, sys
 ok = True
-for name, expect in (("leak.stl", "bob"), ("original.off", None)):
+for name, expect in (("leak.stl", "bob"), ("leak-step.stl", "alice"), ("original.off", None)):
     r = json.load(open(f"{sys.argv[1]}/{name}.json"))["result"]
     print(f"{name}: {r['verdict']}")
     if r["verdict"] == "attributed":

@@ -9,8 +9,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 B=${ASAN_BUILD_DIR:-build-asan}
 JOBS=${JOBS:-$(nproc)}
-TESTS="test_support test_meshio test_codec test_store test_watermark test_spectral test_subdivision test_geometry"
-FUZZ="mesh stream config copy_record"
+TESTS="test_support test_meshio test_cad test_codec test_store test_watermark test_spectral test_subdivision test_geometry"
+FUZZ="mesh cad stream config copy_record"
 cmake -S . -B "$B" -DCMAKE_BUILD_TYPE=Asan >/dev/null
 cmake --build "$B" -j "$JOBS" --target $TESTS $(for f in $FUZZ; do echo "fuzz_$f"; done) >/dev/null
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1

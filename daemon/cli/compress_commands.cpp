@@ -18,6 +18,7 @@
 #include <sys/resource.h>
 #include <mutex>
 
+#include "cad/read_part.h"
 #include "cli/commands.h"
 #include "cli/mesh_files.h"
 #include "codec/stream.h"
@@ -53,7 +54,7 @@ int stream_levels(const DecodedStream& s, int fallback) {
 
 // A mesh file as is, or a .mmc stream subdivided to `level` (its own fitted level when < 0).
 Mesh load_surface(const std::string& path, int level) {
-  if (!ends_with(path, ".mmc")) return read_mesh(path);
+  if (!ends_with(path, ".mmc")) return read_part(path);
   auto s = decode_file(path);
   return decompress_to_level(s.mesh, level >= 0 ? level : stream_levels(s, 3));
 }
@@ -170,7 +171,7 @@ void add_compress_commands(CLI::App& app) {
                 "(default: exit 1 and write nothing)");
     c->add_flag("--json", a->json, "print the summary as JSON");
     c->callback([a, angle_option] {
-      Mesh mesh = read_mesh(a->in);
+      Mesh mesh = read_part(a->in);
       auto t0 = std::chrono::steady_clock::now();
       // The quality code's dense measurement is the one reported below: let it decide when a
       // round meets the tolerance too.

@@ -4,6 +4,7 @@
 #include <string_view>
 
 #include "cli/file_util.h"
+#include "cad/read_part.h"
 #include "codec/stream.h"
 #include "meshio/read_mesh.h"
 
@@ -29,9 +30,11 @@ bool is_mesh_path(const std::string& path) {
   return is_mesh_format(lower_extension(path));
 }
 
+bool is_part_path(const std::string& path) { return is_part_format(lower_extension(path)); }
+
 InputFile load_input(const std::string& path) {
-  if (!is_stream_path(path) && !is_mesh_path(path))
-    throw InputError(path, "unknown file type (expected " + mesh_format_list() + ", or .mmc)");
+  if (!is_stream_path(path) && !is_part_path(path))
+    throw InputError(path, "unknown file type (expected " + part_format_list() + ", or .mmc)");
   InputFile in;
   const std::vector<std::uint8_t> bytes = read_file_bytes(path);
   in.sha256 = sha256_hex(bytes.data(), bytes.size());
@@ -43,7 +46,7 @@ InputFile load_input(const std::string& path) {
     in.metadata = std::move(s.metadata);
   } else {
     const std::string_view view(reinterpret_cast<const char*>(bytes.data()), bytes.size());
-    in.mesh = parse_mesh(view, lower_extension(path), path);
+    in.mesh = parse_part(view, lower_extension(path), path);
   }
   return in;
 }

@@ -1,5 +1,5 @@
 // Loading and writing the files the offline commands take: a mesh (STL, OBJ, OFF, PLY, 3MF,
-// glTF, GLB) or a .mmc stream, chosen by extension. The bytes are read once, so the hash recorded is the hash of what
+// glTF, GLB), a CAD part (STEP, IGES: tessellated) or a .mmc stream, chosen by extension. The bytes are read once, so the hash recorded is the hash of what
 // was parsed.
 #pragma once
 #include <cstdint>
@@ -13,6 +13,7 @@ namespace mm::cli {
 
 bool is_stream_path(const std::string& path);  // ends in .mmc (any case)
 bool is_mesh_path(const std::string& path);    // ends in one of mesh_formats() (any case)
+bool is_part_path(const std::string& path);    // ends in one of part_formats(): a mesh or a CAD part
 bool is_triangle_path(const std::string& path);  // a mesh format that stores triangles only
 
 struct InputFile {

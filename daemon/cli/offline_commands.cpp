@@ -1,11 +1,13 @@
 // Offline commands working on files only, no store:
 //   meshmark info MESH                      vertex and face counts
 //   meshmark sample NAME OUT | --list       a generated CAD-like sample part
+//   meshmark convert IN OUT                 a part in another mesh format
 //   meshmark keygen OUT                     a random 256-bit customer key, mode 0600, never overwrites
 // attack lives in attack_commands.cpp, embed and extract in mark_commands.cpp.
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
@@ -18,6 +20,9 @@
 #include "meshio/read_mesh.h"
 #include "render/image.h"
 #include "samples/samples.h"
+#include "cad/read_part.h"
+#include "cad/sample_solids.h"
+#include "support/atomic_file.h"
 
 namespace mm::cli {
 namespace {
@@ -35,17 +40,29 @@ void add_sample_command(CLI::App& app) {
   auto a = std::make_shared<Args>();
   auto* c = app.add_subcommand("sample", "Write a generated CAD-like sample part (closed, sharp-featured)");
   c->add_option("name", a->name, "part name (see --list); '-' and '_' are interchangeable");
-  c->add_option("output", a->out, "mesh file to write (.off, .obj, .ply, .stl)");
+  c->add_option("output", a->out,
+                "file to write: a mesh (.off, .obj, .ply, .stl, ...), or for the CAD parts .step, .stp, .iges or .igs");
   c->add_flag("--list", a->list, "list the parts with their vertex and face counts");
   c->callback([a] {
     const auto parts = samples::sample_parts();
     if (a->list) {
       for (const auto& p : parts)
         std::cout << p.name << "  " << p.mesh.num_vertices() << " vertices, " << p.mesh.num_faces() << " faces\n";
+      for (const auto& n : cad::sample_solid_names()) std::cout << n << "  CAD part (STEP or IGES)\n";
       return;
     }
     if (a->name.empty() || a->out.empty()) throw CLI::ValidationError("sample", "needs NAME and OUT (or --list)");
     const std::string name = canonical_sample_name(a->name);
+    const auto& solids = cad::sample_solid_names();
+    if (std::find(solids.begin(), solids.end(), name) != solids.end()) {
+      const std::string ext = std::filesystem::path(a->out).extension().string();
+      const std::string format = ext.empty() ? "" : ext.substr(1);
+      if (!is_cad_format(format)) throw InputError(a->out, "a CAD sample is written as .step, .stp, .iges or .igs");
+      const std::string bytes = cad::sample_solid_bytes(name, format);
+      support::write_file_atomic(a->out, bytes);
+      std::cout << a->out << ": " << name << ", " << bytes.size() << " bytes\n";
+      return;
+    }
     for (const auto& p : parts)
       if (p.name == name) {
         if (!is_mesh_path(a->out))
@@ -57,7 +74,31 @@ void add_sample_command(CLI::App& app) {
       }
     std::string names;
     for (const auto& p : parts) names += (names.empty() ? "" : ", ") + p.name;
+    for (const auto& n : solids) names += ", " + n;
     throw CLI::ValidationError("sample", "unknown part '" + a->name + "' (known: " + names + ")");
+  });
+}
+
+// A part in another mesh format: what a partner's tool does to a copy, and the benchmarks' converter.
+void add_convert_command(CLI::App& app) {
+  struct Args {
+    std::string in, out;
+    int draco_bits = 0;
+  };
+  auto a = std::make_shared<Args>();
+  auto* c = app.add_subcommand("convert", "Write a part (a mesh, or a STEP or IGES part tessellated) in another mesh format");
+  c->add_option("input", a->in, "part file (" + part_format_list() + ")")->required();
+  c->add_option("output", a->out, "mesh file to write (" + mesh_format_list() + ")")->required();
+  c->add_option("--draco-bits", a->draco_bits, "GLB or glTF output: Draco-compressed, positions quantised to these bits")
+      ->check(CLI::Range(8, 30));
+  c->callback([a] {
+    if (!is_mesh_path(a->out)) throw InputError(a->out, "unknown output type (expected " + mesh_format_list() + ")");
+    if (std::filesystem::weakly_canonical(a->in) == std::filesystem::weakly_canonical(a->out))
+      throw CommandFailed(1, a->out + ": the output would overwrite the input");
+    PartReport report;
+    const Mesh m = read_part(a->in, {}, &report);
+    write_mesh(m, a->out, WriteOptions{report.read.unit, a->draco_bits});
+    std::cout << a->out << ": " << m.num_vertices() << " vertices, " << m.num_faces() << " faces\n";
   });
 }
 
@@ -136,12 +177,19 @@ void add_keygen_command(CLI::App& app) {
 void add_offline_commands(CLI::App& app) {
   auto* info = app.add_subcommand("info", "Print vertex and face counts of a mesh");
   auto path = std::make_shared<std::string>();
-  info->add_option("mesh", *path, "mesh file (STL, OBJ, OFF, PLY, 3MF, glTF, GLB)")->required();
+  info->add_option("mesh", *path, "mesh file (STL, OBJ, OFF, PLY, 3MF, glTF, GLB) or CAD part (STEP, IGES)")->required();
   info->callback([path] {
-    auto m = read_mesh(*path);
-    std::cout << m.num_vertices() << " vertices, " << m.num_faces() << " faces\n";
+    PartReport report;
+    auto m = read_part(*path, {}, &report);
+    std::cout << m.num_vertices() << " vertices, " << m.num_faces() << " faces";
+    if (const auto& t = report.tessellation)
+      std::cout << " (" << t->format << ": " << t->solids << " solid(s), " << t->faces
+                << " faces tessellated by OpenCASCADE " << t->occt_version << " at " << t->linear_deflection_mm
+                << " mm and " << t->options.angular_deflection_degrees << " degrees)";
+    std::cout << "\n";
   });
   add_sample_command(app);
+  add_convert_command(app);
   add_keygen_command(app);
   add_plot_command(app);
   add_attack_commands(app);

@@ -144,7 +144,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
   cfg.source = source;
   c.known(j, "", {"home", "drop_dir", "output_dir", "master_key_file", "workers", "lease_seconds",
                   "heartbeat_seconds", "max_attempts", "shutdown_grace_seconds", "poll_interval_ms",
-                  "settle_ms", "use_inotify", "input_roots", "max_input_bytes", "max_triangles", "output_format", "watermark", "compression", "detect", "evidence", "log_level",
+                  "settle_ms", "use_inotify", "input_roots", "max_input_bytes", "max_triangles", "output_format", "watermark", "compression", "detect", "evidence", "cad", "log_level",
                   "log_file", "$comment"});
   c.path(j, "home", cfg.home, true);
   c.path(j, "drop_dir", cfg.drop_dir, true);
@@ -229,6 +229,18 @@ Config parse_config(const std::string& text, const std::string& source, const st
   if (cfg.compression.max_vertices > cfg.max_vertices)
     c.error("compression.max_vertices", "must be at most watermark.max_vertices (" + std::to_string(cfg.max_vertices) +
                                             "), the watermark's limit");
+  if (j.contains("cad")) {
+    const json& w = j["cad"];
+    if (!w.is_object()) {
+      c.error("cad", "must be an object");
+    } else {
+      c.known(w, "cad.", {"linear_deflection", "angular_deflection", "copy_format"});
+      c.number(w, "cad.", "linear_deflection", cfg.cad.linear_deflection, 0, 0.1, true);
+      c.number(w, "cad.", "angular_deflection", cfg.cad.angular_deflection_degrees, 1, 90, false);
+      const std::set<std::string> formats(mesh_formats().begin(), mesh_formats().end());
+      c.string(w, "cad.", "copy_format", cfg.cad_copy_format, formats);
+    }
+  }
   if (j.contains("detect")) {
     const json& d = j["detect"];
     if (!d.is_object()) {
@@ -315,6 +327,9 @@ std::map<std::string, std::string> flatten(const Config& c) {
           {"settle_ms", std::to_string(c.settle_ms)},
           {"use_inotify", c.use_inotify ? "true" : "false"},
           {"output_format", c.output_format},
+          {"cad.linear_deflection", num(c.cad.linear_deflection)},
+          {"cad.angular_deflection", num(c.cad.angular_deflection_degrees)},
+          {"cad.copy_format", c.cad_copy_format},
           {"watermark.method", c.watermark.params.method == Method::Additive ? "additive" : "multiplicative"},
           {"watermark.strength", num(c.watermark.params.strength)},
           {"watermark.threshold", num(c.watermark.params.threshold)},

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "cad/tessellate.h"
 #include "jobs/protect.h"
 
 namespace mm::service {
@@ -39,7 +40,11 @@ struct Config {
   // the part (docs/daemon.md, Limits).
   std::int64_t max_input_bytes = 256ll << 20;
   std::int64_t max_triangles = 1000000;
-  std::string output_format = "same";  // same | stl | obj | off | ply
+  std::string output_format = "same";  // same (a CAD part: cad.copy_format) | stl | obj | off | ply | 3mf | glb | gltf
+  // STEP and IGES parts: cad.linear_deflection (of the diagonal), cad.angular_deflection (degrees),
+  // recorded with the asset; cad.copy_format: the mesh format their copies are written in.
+  TessellationOptions cad;
+  std::string cad_copy_format = "3mf";
   jobs::WatermarkSettings watermark;
   int max_vertices = 4000;          // watermark.max_vertices: cap on the control polyhedron
   int min_mark_vertices = 200;      // watermark.min_vertices: smaller polyhedra are refined for the mark

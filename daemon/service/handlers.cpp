@@ -15,6 +15,7 @@
 #include <string_view>
 #include <system_error>
 
+#include "cad/read_part.h"
 #include "codec/stream.h"
 #include "jobs/copy_identity.h"
 #include "jobs/detect_suspect.h"
@@ -42,13 +43,13 @@ std::string lower(std::string s) {
   return s;
 }
 
-// Mesh formats; detect also takes .mmc streams (a leaked compressed copy).
+// Mesh formats and CAD parts; detect also takes .mmc streams (a leaked compressed copy).
 std::string format_of(const std::string& name, bool allow_stream = false) {
   std::string ext = lower(fs::path(name).extension().string());
   if (!ext.empty()) ext.erase(0, 1);
   if (allow_stream && ext == "mmc") return ext;
-  if (!is_mesh_format(ext))
-    throw PermanentError(name + ": unsupported format \"" + ext + "\" (expected " + mesh_format_list() +
+  if (!is_part_format(ext))
+    throw PermanentError(name + ": unsupported format \"" + ext + "\" (expected " + part_format_list() +
                          (allow_stream ? std::string(", or a .mmc stream)") : std::string(")")));
   return ext;
 }
@@ -122,7 +123,8 @@ std::vector<std::uint8_t> input_bytes(store::Store& st, const json& p, const sto
 }
 
 Mesh parse_input(const std::vector<std::uint8_t>& bytes, const std::string& name,
-                 std::map<std::string, std::string>* stream_metadata = nullptr, ReadReport* report = nullptr) {
+                 std::map<std::string, std::string>* stream_metadata, const TessellationOptions& cad,
+                 PartReport* report = nullptr) {
   std::string fmt = format_of(name, stream_metadata != nullptr);
   try {
     if (fmt == "mmc") {
@@ -130,7 +132,8 @@ Mesh parse_input(const std::vector<std::uint8_t>& bytes, const std::string& name
       *stream_metadata = d.metadata;
       return d.mesh;
     }
-    return parse_mesh(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), fmt, name, report);
+    return parse_part(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), fmt, name, cad,
+                      report);
   } catch (const InputError& e) {
     throw PermanentError(e.what());
   }
@@ -138,6 +141,18 @@ Mesh parse_input(const std::vector<std::uint8_t>& bytes, const std::string& name
 
 // A fraction of the diagonal as a percentage, for messages.
 std::string percent(double fraction) { return fmt::format("{:.3f} %", 100 * fraction); }
+
+// How a CAD part's mesh was made: with the stored file, enough to make it again years later.
+json tessellation_json(const Tessellation& t, const std::string& source_sha256) {
+  return {{"format", t.format},
+          {"source_sha256", source_sha256},
+          {"occt_version", t.occt_version},
+          {"linear_deflection", t.options.linear_deflection},
+          {"linear_deflection_mm", t.linear_deflection_mm},
+          {"angular_deflection_degrees", t.options.angular_deflection_degrees},
+          {"solids", t.solids},
+          {"faces", t.faces}};
+}
 
 struct LoadedAsset {
   store::Asset asset;
@@ -193,9 +208,11 @@ jobs::PreparedAsset prepare_within_tolerance(const Mesh& mesh, const jobs::Prepa
 }
 
 LoadedAsset get_or_prepare(store::Store& st, const std::string& sha, const std::vector<std::uint8_t>& bytes,
-                           const std::string& name, const Mesh& mesh, const Config& cfg, RefusedParts* refused) {
+                           const std::string& name, const Mesh& mesh, const PartReport& read, const Config& cfg,
+                           RefusedParts* refused) {
   jobs::PrepareParams pp = prepare_params(cfg);
-  const std::string key = pp.key();
+  // A CAD part's mesh is its tessellation: other options (or another OpenCASCADE) prepare it again.
+  const std::string key = pp.key() + (read.tessellation ? ";" + tessellation_key(read.tessellation->options) : "");
   const std::optional<store::Asset> existing = st.find_asset(sha);
   if (existing)
     if (auto row = st.find_polyhedron(existing->id, key)) return {*existing, *row, decode_row(st, *row)};
@@ -223,8 +240,7 @@ LoadedAsset get_or_prepare(store::Store& st, const std::string& sha, const std::
   row.params_key = key;
   row.polyhedron_blob = st.blobs().put(jobs::encode_polyhedron(prepared));
   row.basis_blob = st.blobs().put(serialize_basis(prepared.basis));
-  json meta = json::parse(prepared.signature.to_json());
-  row.meta_json = json{{"signature", meta},
+  json meta{{"signature", json::parse(prepared.signature.to_json())},
                        {"footprint", json::parse(prepared.footprint.to_json())},
                        {"control_vertices", prepared.control.num_vertices()},
                        {"input_vertices", mesh.num_vertices()},
@@ -233,8 +249,9 @@ LoadedAsset get_or_prepare(store::Store& st, const std::string& sha, const std::
                        {"rms_relative", cr.stats.rms / cr.stats.diagonal},
                        {"tolerance_met", cr.tolerance_met},
                        {"angle", cr.angle_degrees},
-                       {"rounds", cr.rounds}}
-                      .dump();
+                       {"rounds", cr.rounds}};
+  if (read.tessellation) meta["tessellation"] = tessellation_json(*read.tessellation, sha);
+  row.meta_json = meta.dump();
   row = st.put_polyhedron(row);
   return {stored, row, std::move(prepared)};
 }
@@ -264,9 +281,9 @@ void check_triangles(const Mesh& mesh, const std::string& name, const Config& cf
 }
 
 Mesh read_named_mesh(const std::vector<std::uint8_t>& bytes, const std::string& name,
-                     std::map<std::string, std::string>* stream_metadata) {
+                     std::map<std::string, std::string>* stream_metadata, const TessellationOptions& cad) {
   std::map<std::string, std::string> metadata;
-  return parse_input(bytes, name, stream_metadata ? stream_metadata : &metadata);
+  return parse_input(bytes, name, stream_metadata ? stream_metadata : &metadata, cad);
 }
 
 std::string output_base_for(const Config& cfg, const std::string& customer, const std::string& name,
@@ -306,15 +323,17 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
 
   std::string sha;
   auto bytes = input_bytes(st, p, job, &sha, ctx.config);
-  ReadReport read;
-  Mesh mesh = parse_input(bytes, name, nullptr, &read);
+  PartReport read;
+  Mesh mesh = parse_input(bytes, name, nullptr, cfg.cad, &read);
   check_triangles(mesh, name, cfg);
   std::string in_format = format_of(name);
-  if (out_format.empty()) out_format = cfg.output_format == "same" ? in_format : cfg.output_format;
+  // A CAD part's copy is a mesh: cad.copy_format unless the job or output_format names one.
+  if (out_format.empty())
+    out_format = cfg.output_format != "same" ? cfg.output_format : is_cad_format(in_format) ? cfg.cad_copy_format : in_format;
   if (!is_mesh_format(out_format))
     throw PermanentError("job " + std::to_string(job.id) + ": unsupported output_format \"" + out_format + "\"");
 
-  LoadedAsset la = get_or_prepare(st, sha, bytes, name, mesh, cfg, refused);
+  LoadedAsset la = get_or_prepare(st, sha, bytes, name, mesh, read, cfg, refused);
   const store::Asset& asset = la.asset;
   store::CustomerKey ck = st.customer_key(customer->id);
 
@@ -369,9 +388,11 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   const std::string base = output_base_for(cfg, customer->name, name, idem);
   const std::string stream_path = base + ".mmc", out = base + "." + out_format;
   std::string decoded_bytes;
+  // A Draco-compressed glTF part gets a Draco-compressed copy, as fine as the stream's grid.
+  const int draco_bits = read.read.draco && (out_format == "glb" || out_format == "gltf") ? cfg.stream_bits : 0;
   try {
     // A copy keeps the part's unit where both formats state one (3MF).
-    decoded_bytes = mesh_file_bytes(files.decoded, out, WriteOptions{read.unit});
+    decoded_bytes = mesh_file_bytes(files.decoded, out, WriteOptions{read.read.unit, draco_bits});
   } catch (const InputError& e) {
     throw PermanentError(name + ": cannot write the decoded copy: " + e.what());
   }
@@ -403,7 +424,8 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   nc.params_json = jobs::copy_params_json(ws, la.row.params_key, la.row.basis_blob);
   json decoded_file{{"role", "decoded"}, {"path", out},     {"sha256", out_sha},
                     {"format", out_format}, {"levels", prep.levels}, {"vertices", files.decoded.num_vertices()}};
-  if (out_format == "3mf") decoded_file["unit"] = read.unit.empty() ? "millimeter" : read.unit;
+  if (out_format == "3mf") decoded_file["unit"] = read.read.unit.empty() ? "millimeter" : read.read.unit;
+  if (draco_bits) decoded_file["draco_bits"] = draco_bits;
   nc.outputs_json =
       json{{"files", json::array({decoded_file,
                                   json{{"role", "stream"}, {"path", stream_path}, {"sha256", stream_sha}, {"format", "mmc"},
@@ -440,6 +462,8 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
               {"mark_max", cost.max},
               {"mark_rms", cost.rms}};
   if (!warning.empty()) result["warning"] = warning;
+  if (read.tessellation) result["tessellation"] = tessellation_json(*read.tessellation, sha);
+  result["output_bytes"] = decoded_bytes.size();
   rec.result_json = result.dump();
   return rec;
 }
@@ -551,7 +575,7 @@ store::JobRecords run_detect(store::Store& st, const store::Job& job, const Hand
   jobs::Suspect suspect;
   suspect.name = fs::path(str_field(p, "name", job)).filename().string();
   auto bytes = input_bytes(st, p, job, &suspect.sha256, cfg);
-  suspect.mesh = parse_input(bytes, suspect.name, &suspect.stream_metadata);
+  suspect.mesh = parse_input(bytes, suspect.name, &suspect.stream_metadata, cfg.cad);
   check_triangles(suspect.mesh, suspect.name, cfg);
   const DetectionRecord dr = detect_record(st, suspect, {cfg.p_threshold, cfg.max_candidates}, contexts);
   const store::NewDetection& d = dr.detection;

@@ -96,11 +96,12 @@ DetectionRecord detect_record(store::Store& st, const jobs::Suspect& suspect, co
 // cfg.max_triangles allows: the work and memory of a job grow with it.
 void check_triangles(const Mesh& mesh, const std::string& name, const Config& cfg);
 
-// A mesh file's bytes parsed by the format its name's extension gives (a .mmc stream decoded);
-// PermanentError naming the file and the reason when they cannot be. A stream's metadata goes
-// to stream_metadata when given.
+// A part's bytes parsed by the format its name's extension gives (a .mmc stream decoded, a STEP
+// or IGES part tessellated with `cad`); PermanentError naming the file and the reason when they
+// cannot be. A stream's metadata goes to stream_metadata when given.
 Mesh read_named_mesh(const std::vector<std::uint8_t>& bytes, const std::string& name,
-                     std::map<std::string, std::string>* stream_metadata = nullptr);
+                     std::map<std::string, std::string>* stream_metadata = nullptr,
+                     const TessellationOptions& cad = {});
 
 // Submitting: the file's bytes go into the blob store first (so the job does not depend on the
 // file staying where it is), then the job is enqueued with an idempotency key derived from what

@@ -85,6 +85,21 @@ TEST_F(ConfigTest, ReportsEveryProblemWithItsKey) {
     EXPECT_NE(e.find(s), std::string::npos) << s << "\n" << e;
 }
 
+TEST_F(ConfigTest, CadKeysSetTheTessellationAndTheCopyFormat) {
+  Config c = parse_config("{" + base + R"(, "cad": {"linear_deflection": 0.001, "angular_deflection": 20,
+      "copy_format": "glb"}})", "test.json", dir.string(), true);
+  EXPECT_EQ(c.cad.linear_deflection, 0.001);
+  EXPECT_EQ(c.cad.angular_deflection_degrees, 20);
+  EXPECT_EQ(c.cad_copy_format, "glb");
+  const Config d = parse_config("{" + base + "}", "test.json", dir.string(), true);
+  EXPECT_EQ(d.cad_copy_format, "3mf");
+  const std::string e = expect_error("{" + base + R"(, "cad": {"linear_deflection": 0, "angular_deflection": 100,
+      "copy_format": "step", "quality": 1}})");
+  for (const char* k : {"cad.linear_deflection: must be in", "cad.angular_deflection: must be in",
+                        "cad.copy_format: must be one of", "cad.quality: unknown key"})
+    EXPECT_NE(e.find(k), std::string::npos) << k << "\n" << e;
+}
+
 TEST_F(ConfigTest, MissingFoldersAndBadCombinations) {
   std::string e = expect_error(R"({"home": "nohome", "drop_dir": "drop", "output_dir": "drop/out"})");
   EXPECT_NE(e.find("home: folder"), std::string::npos) << e;

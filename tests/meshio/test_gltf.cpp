@@ -170,5 +170,35 @@ TEST(Gltf, ExternalFilesAreNeverOpenedAndDamageIsRefusedByName) {
                  "no triangle primitive");
 }
 
+TEST(Gltf, DracoCompressedCopiesKeepTheVertexOrderWithinTheirQuantisation) {
+  Mesh m;
+  m.points.resize(5, 3);
+  m.points << 0, 0, 0, 2, 0, 0, 2, 1, 0, 0, 1, 0, 1, 0.5, 1.25;
+  m.faces = {{0, 3, 2, 1}, {0, 1, 4}, {1, 2, 4}, {2, 3, 4}, {3, 0, 4}};
+  for (const char* ext : {"glb", "gltf"}) {
+    const fs::path path = test::scratch_dir("mm_gltf") / (std::string("draco.") + ext);
+    WriteOptions options;
+    options.draco_bits = 16;
+    write_mesh(m, path.string(), options);
+    ReadReport report;
+    const Mesh back = read_mesh(path.string(), &report);
+    EXPECT_TRUE(report.draco) << ext;
+    ASSERT_EQ(back.num_vertices(), 5) << ext;
+    // 16 bits over the largest side (2): a step of 3.1e-5, half of it at most per coordinate.
+    EXPECT_LT((back.points - m.points).cwiseAbs().maxCoeff(), 2.0 / 65535) << ext;
+    EXPECT_EQ(back.faces, (std::vector<std::vector<int>>{{0, 3, 2}, {0, 2, 1}, {0, 1, 4}, {1, 2, 4}, {2, 3, 4}, {3, 0, 4}}))
+        << ext;
+    // The plain writer's file is larger and not compressed.
+    const fs::path plain = test::scratch_dir("mm_gltf") / (std::string("plain.") + ext);
+    write_mesh(m, plain.string());
+    ReadReport plain_report;
+    read_mesh(plain.string(), &plain_report);
+    EXPECT_FALSE(plain_report.draco);
+  }
+  WriteOptions bad;
+  bad.draco_bits = 40;
+  EXPECT_THROW(write_mesh(m, (test::scratch_dir("mm_gltf") / "bad.glb").string(), bad), InputError);
+}
+
 }  // namespace
 }  // namespace mm

@@ -2,7 +2,9 @@
 // OpenMesh's own STL reader (an independent implementation) and keeps every triangle.
 #include <OpenMesh/Core/IO/MeshIO.hh>
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -193,3 +195,127 @@ TEST(ReadMesh, ParseMeshFromMemoryNamesTheSource) {
 }
 
 }  // namespace
+
+namespace {
+
+// Geomview binary OFF: big-endian 32-bit words after the text header line.
+struct BinaryOff {
+  std::string bytes;
+  void word(std::uint32_t w) {
+    for (int shift = 24; shift >= 0; shift -= 8) bytes.push_back(static_cast<char>((w >> shift) & 0xff));
+  }
+  void integer(std::int32_t i) { word(static_cast<std::uint32_t>(i)); }
+  void real(float f) {
+    std::uint32_t w;
+    std::memcpy(&w, &f, sizeof w);
+    word(w);
+  }
+};
+
+// A tetrahedron as COFF BINARY: RGBA per vertex, one face with a colour, one without.
+std::string binary_tetrahedron() {
+  BinaryOff off;
+  off.bytes = "# written by a test\nCOFF BINARY\n";
+  off.integer(4), off.integer(4), off.integer(6);
+  const float p[4][3] = {{0, 0, 0}, {1.5f, 0, 0}, {0, 2.25f, 0}, {0, 0, -3}};
+  for (const auto& v : p) {
+    for (float x : v) off.real(x);
+    for (int c = 0; c < 4; ++c) off.real(0.5f);
+  }
+  const int f[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  for (int i = 0; i < 4; ++i) {
+    off.integer(3);
+    for (int v : f[i]) off.integer(v);
+    off.integer(i % 2 == 0 ? 3 : 0);
+    if (i % 2 == 0)
+      for (int c = 0; c < 3; ++c) off.real(1);
+  }
+  return off.bytes;
+}
+
+}  // namespace
+
+TEST(ReadMesh, BinaryOffWithColoursReadsExactly) {
+  mm::ReadReport report;
+  const mm::Mesh m = mm::parse_mesh(binary_tetrahedron(), "off", "tet.off", &report);
+  EXPECT_EQ(report.format, "off-binary");
+  ASSERT_EQ(m.num_vertices(), 4);
+  EXPECT_EQ(m.points(1, 0), 1.5);
+  EXPECT_EQ(m.points(2, 1), 2.25);
+  EXPECT_EQ(m.points(3, 2), -3);
+  ASSERT_EQ(m.num_faces(), 4);
+  EXPECT_EQ(m.faces[0], (std::vector<int>{0, 2, 1}));
+  EXPECT_EQ(m.faces[3], (std::vector<int>{1, 2, 3}));
+}
+
+TEST(ReadMesh, BrokenBinaryOffIsRefusedWithTheReason) {
+  const std::string good = binary_tetrahedron();
+  const auto reason = [](const std::string& bytes) {
+    try {
+      mm::parse_mesh(bytes, "off", "tet.off");
+    } catch (const mm::InputError& e) {
+      EXPECT_EQ(e.source(), "tet.off");
+      return e.reason();
+    }
+    return std::string("accepted");
+  };
+  // Every cut inside the data is refused, never read past.
+  for (std::size_t n = good.find("BINARY\n") + 7; n < good.size(); n += 5) EXPECT_NE(reason(good.substr(0, n)), "accepted") << n;
+  EXPECT_NE(reason(good.substr(0, good.size() - 2)).find("truncated"), std::string::npos);
+  std::string bad = good;
+  bad[bad.size() - 5] = 9;  // the last face's last index (before its colour count): 9 of 4 vertices
+  EXPECT_NE(reason(bad).find("out of range"), std::string::npos);
+  std::string absurd = good;
+  absurd[good.find("BINARY\n") + 7] = 0x7f;  // the vertex count's top byte
+  EXPECT_NE(reason(absurd).find("absurd counts"), std::string::npos);
+  EXPECT_NE(reason(good + "xx").find("after the 4 faces"), std::string::npos);
+  EXPECT_NE(reason("OFF BINARY extra\n").find("after \"BINARY\""), std::string::npos);
+}
+
+TEST(ReadMesh, PlyTakesEveryPropertyTypeByBothNames) {
+  // Each scalar type under both of its names: as a coordinate, as an ignored property, as a list's
+  // count and entries; a second list (texture coordinates) on the face is skipped.
+  const char* names[8][2] = {{"char", "int8"},   {"uchar", "uint8"}, {"short", "int16"},   {"ushort", "uint16"},
+                             {"int", "int32"},   {"uint", "uint32"}, {"float", "float32"}, {"double", "float64"}};
+  for (int name = 0; name < 2; ++name)
+    for (int t = 0; t < 8; ++t) {
+      SCOPED_TRACE(names[t][name]);
+      const char* ty = names[t][name];
+      const char* count = t < 6 ? ty : "uchar";  // list counts must be integers
+      const char* index = t < 6 ? ty : "int";
+      std::string s = std::string("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty ") + ty + " x\n" +
+                      "property " + ty + " extra\nproperty float y\nproperty " + ty + " z\nelement face 1\n" +
+                      "property list " + count + " " + index + " vertex_indices\nproperty list uchar " + ty +
+                      " texcoord\nproperty " + ty + " quality\nend_header\n";
+      auto put = [&s](double v, int type) {
+        unsigned char b[8];
+        switch (type) {
+          case 0: { const auto x = static_cast<std::int8_t>(v); std::memcpy(b, &x, 1); break; }
+          case 1: { const auto x = static_cast<std::uint8_t>(v); std::memcpy(b, &x, 1); break; }
+          case 2: { const auto x = static_cast<std::int16_t>(v); std::memcpy(b, &x, 2); break; }
+          case 3: { const auto x = static_cast<std::uint16_t>(v); std::memcpy(b, &x, 2); break; }
+          case 4: { const auto x = static_cast<std::int32_t>(v); std::memcpy(b, &x, 4); break; }
+          case 5: { const auto x = static_cast<std::uint32_t>(v); std::memcpy(b, &x, 4); break; }
+          case 6: { const auto x = static_cast<float>(v); std::memcpy(b, &x, 4); break; }
+          default: std::memcpy(b, &v, 8);
+        }
+        const int n = type == 0 || type == 1 ? 1 : type == 2 || type == 3 ? 2 : type == 7 ? 8 : 4;
+        s.append(reinterpret_cast<const char*>(b), static_cast<std::size_t>(n));
+      };
+      const double p[3][3] = {{1, 2, 3}, {4, 5, 6}, {7, 8, 9}};
+      for (const auto& v : p) {
+        put(v[0], t), put(99, t), put(v[1], 6), put(v[2], t);
+      }
+      const int ct = t < 6 ? t : 1, it = t < 6 ? t : 4;
+      put(3, ct), put(2, it), put(0, it), put(1, it);
+      put(2, 1), put(5, t), put(6, t);
+      put(1, t);
+      mm::ReadReport r;
+      const mm::Mesh m = mm::parse_mesh(s, "ply", "types.ply", &r);
+      EXPECT_EQ(r.format, "ply-binary");
+      ASSERT_EQ(m.num_vertices(), 3);
+      for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) EXPECT_EQ(m.points(i, k), p[i][k]);
+      EXPECT_EQ(m.faces, (std::vector<std::vector<int>>{{2, 0, 1}}));
+    }
+}

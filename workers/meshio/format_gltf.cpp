@@ -8,6 +8,8 @@
 #include <tiny_gltf.h>
 
 #include <draco/compression/decode.h>
+#include <draco/compression/encode.h>
+#include <draco/mesh/mesh.h>
 
 #include <Eigen/Geometry>
 #include <cstring>
@@ -58,7 +60,7 @@ struct Collector {
   const std::string& source;
   std::vector<Eigen::Vector3d> points;
   std::vector<std::vector<int>> faces;
-  int primitives = 0, skipped = 0;
+  int primitives = 0, skipped = 0, draco_primitives = 0;
 
   [[noreturn]] void fail(const std::string& why) const { throw InputError(source, why); }
 
@@ -87,6 +89,7 @@ struct Collector {
     const auto draco = p.extensions.find("KHR_draco_mesh_compression");
     if (draco != p.extensions.end()) {
       decode_draco(draco->second, local, index);
+      ++draco_primitives;
     } else {
       const auto pos = p.attributes.find("POSITION");
       if (pos == p.attributes.end() || pos->second < 0 || pos->second >= static_cast<int>(model.accessors.size()))
@@ -227,6 +230,7 @@ Mesh parse_gltf(std::string_view bytes, const std::string& source, ReadReport& r
   for (int r : roots) c.add_node(r, Eigen::Matrix4d::Identity(), 0);
   if (c.primitives == 0) throw InputError(source, "glTF scene has no triangle primitive");
   report.objects = c.primitives;
+  report.draco = c.draco_primitives > 0;
   Mesh m;
   m.points.resize(static_cast<Eigen::Index>(c.points.size()), 3);
   for (std::size_t i = 0; i < c.points.size(); ++i) m.points.row(static_cast<Eigen::Index>(i)) = c.points[i].transpose();
@@ -234,7 +238,38 @@ Mesh parse_gltf(std::string_view bytes, const std::string& source, ReadReport& r
   return m;
 }
 
-std::string gltf_bytes(const Mesh& m, const std::string& path, bool binary) {
+namespace {
+
+// The fanned triangles as one Draco mesh, vertices in their order (sequential coding keeps it),
+// positions quantised to `bits`.
+std::vector<unsigned char> draco_bytes(const Mesh& m, int bits, const std::string& path) {
+  draco::Mesh dm;
+  dm.set_num_points(static_cast<draco::PointIndex::ValueType>(m.num_vertices()));
+  draco::GeometryAttribute position;
+  position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false, sizeof(float) * 3, 0);
+  const int id = dm.AddAttribute(position, true, static_cast<draco::AttributeValueIndex::ValueType>(m.num_vertices()));
+  for (int i = 0; i < m.num_vertices(); ++i) {
+    const Eigen::Vector3f f = m.points.row(i).transpose().cast<float>();
+    dm.attribute(id)->SetAttributeValue(draco::AttributeValueIndex(i), f.data());
+  }
+  for (const auto& f : m.faces)
+    for (std::size_t k = 1; k + 1 < f.size(); ++k)
+      dm.AddFace({draco::PointIndex(static_cast<std::uint32_t>(f[0])), draco::PointIndex(static_cast<std::uint32_t>(f[k])),
+                  draco::PointIndex(static_cast<std::uint32_t>(f[k + 1]))});
+  draco::Encoder encoder;
+  encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, bits);
+  encoder.SetEncodingMethod(draco::MESH_SEQUENTIAL_ENCODING);
+  draco::EncoderBuffer out;
+  const draco::Status status = encoder.EncodeMeshToBuffer(dm, &out);
+  if (!status.ok()) throw InputError(path, "libdraco could not compress the mesh: " + status.error_msg_string());
+  return {out.data(), out.data() + out.size()};
+}
+
+}  // namespace
+
+std::string gltf_bytes(const Mesh& m, const std::string& path, bool binary, int draco_bits) {
+  if (draco_bits != 0 && (draco_bits < 8 || draco_bits > 30))
+    throw InputError(path, "Draco position quantisation of " + std::to_string(draco_bits) + " bits is outside 8..30");
   tinygltf::Model model;
   model.asset.version = "2.0";
   model.asset.generator = "meshmark";
@@ -260,7 +295,8 @@ std::string gltf_bytes(const Mesh& m, const std::string& path, bool binary) {
       ++triangles;
     }
   tinygltf::Buffer buffer;
-  buffer.data = std::move(data);
+  buffer.data = draco_bits ? draco_bytes(m, draco_bits, path) : std::move(data);
+  const std::size_t draco_size = buffer.data.size();
   model.buffers.push_back(std::move(buffer));
   tinygltf::BufferView positions, indices;
   positions.buffer = indices.buffer = 0;
@@ -281,11 +317,29 @@ std::string gltf_bytes(const Mesh& m, const std::string& path, bool binary) {
   ia.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
   ia.type = TINYGLTF_TYPE_SCALAR;
   ia.count = 3 * triangles;
-  model.accessors = {pa, ia};
   tinygltf::Primitive prim;
+  if (draco_bits) {
+    // KHR_draco_mesh_compression: one buffer view holds the Draco mesh; the accessors keep their
+    // counts, types and bounds for viewers, without a buffer view of their own.
+    tinygltf::BufferView compressed;
+    compressed.buffer = 0;
+    compressed.byteLength = draco_size;
+    model.bufferViews = {compressed};
+    pa.bufferView = -1;
+    tinygltf::Value::Object attributes{{"POSITION", tinygltf::Value(0)}};
+    tinygltf::Value::Object ext{{"bufferView", tinygltf::Value(0)}, {"attributes", tinygltf::Value(attributes)}};
+    prim.extensions["KHR_draco_mesh_compression"] = tinygltf::Value(ext);
+    model.extensionsUsed = model.extensionsRequired = {"KHR_draco_mesh_compression"};
+  }
   prim.attributes["POSITION"] = 0;
-  prim.indices = 1;
   prim.mode = TINYGLTF_MODE_TRIANGLES;
+  if (draco_bits) {
+    // The Draco mesh holds the triangles; tinygltf refuses an indices accessor without a view.
+    model.accessors = {pa};
+  } else {
+    model.accessors = {pa, ia};
+    prim.indices = 1;
+  }
   tinygltf::Mesh mesh;
   mesh.primitives.push_back(prim);
   model.meshes.push_back(mesh);

@@ -17,8 +17,9 @@ Mesh parse_3mf(std::string_view bytes, const std::string& source, ReadReport& re
 
 // glTF 2.0 JSON (binary false; buffers embedded as data: URIs) or GLB (binary true).
 Mesh parse_gltf(std::string_view bytes, const std::string& source, ReadReport& report, bool binary);
-// One mesh, one node, float32 positions, uint32 indices of fanned triangles.
-std::string gltf_bytes(const Mesh& mesh, const std::string& path, bool binary);
+// One mesh, one node, float32 positions, uint32 indices of fanned triangles; with draco_bits
+// (8..30) the primitive is Draco-compressed (KHR_draco_mesh_compression) at that quantisation.
+std::string gltf_bytes(const Mesh& mesh, const std::string& path, bool binary, int draco_bits = 0);
 
 // A 3MF package holding the mesh as one object in `unit` ("" = millimeter); path names it in errors.
 std::string three_mf_bytes(const Mesh& mesh, const std::string& unit, const std::string& path);

@@ -23,24 +23,6 @@ std::string lower_extension(const std::string& path) {
   return ext;
 }
 
-std::string load_file(const std::string& path) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  auto st = fs::status(path, ec);
-  if (ec || !fs::exists(st)) throw InputError(path, "no such file");
-  if (fs::is_directory(st)) throw InputError(path, "is a directory, not a mesh file");
-  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
-  if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
-  std::uintmax_t size = fs::file_size(path, ec);
-  if (ec) throw InputError(path, "cannot determine file size: " + ec.message());
-  if (size == 0) throw InputError(path, "empty file");
-  if (size > kMaxFileBytes)
-    throw InputError(path, "file too large (" + std::to_string(size) + " bytes, limit 2 GiB)");
-  std::string bytes(static_cast<size_t>(size), '\0');
-  size_t got = std::fread(bytes.data(), 1, bytes.size(), f.get());
-  if (got != bytes.size()) throw InputError(path, "read error after " + std::to_string(got) + " bytes");
-  return bytes;
-}
 
 // Removes a vertex listed twice in a row (cyclically); drops faces that still do not have at
 // least 3 distinct vertices. Counted in the report: never silent.
@@ -72,6 +54,25 @@ void clean_faces(Mesh& mesh, ReadReport& report) {
 }
 
 }  // namespace
+
+std::string read_input_file(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  auto st = fs::status(path, ec);
+  if (ec || !fs::exists(st)) throw InputError(path, "no such file");
+  if (fs::is_directory(st)) throw InputError(path, "is a directory, not a mesh file");
+  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!f) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
+  std::uintmax_t size = fs::file_size(path, ec);
+  if (ec) throw InputError(path, "cannot determine file size: " + ec.message());
+  if (size == 0) throw InputError(path, "empty file");
+  if (size > kMaxFileBytes)
+    throw InputError(path, "file too large (" + std::to_string(size) + " bytes, limit 2 GiB)");
+  std::string bytes(static_cast<size_t>(size), '\0');
+  size_t got = std::fread(bytes.data(), 1, bytes.size(), f.get());
+  if (got != bytes.size()) throw InputError(path, "read error after " + std::to_string(got) + " bytes");
+  return bytes;
+}
 
 namespace formats {
 void check_finite(const double* xyz, const std::string& source, const std::string& what) {
@@ -138,7 +139,7 @@ Mesh read_mesh(const std::string& path, ReadReport* report) {
   std::string ext = lower_extension(path);
   if (ext.empty() || !is_mesh_format(ext.substr(1)))
     throw InputError(path, "unknown mesh format \"" + ext + "\" (expected " + mesh_format_list() + ")");
-  std::string bytes = load_file(path);
+  std::string bytes = read_input_file(path);
   return parse_mesh(bytes, ext.substr(1), path, report);
 }
 

@@ -1,4 +1,4 @@
-// Reading and writing meshes: STL (binary/ASCII, duplicate vertices welded), OBJ, OFF, PLY
+// Reading and writing meshes: STL (binary/ASCII, duplicate vertices welded), OBJ, OFF (ASCII/binary), PLY
 // (ASCII and binary), 3MF through lib3mf, glTF 2.0 and GLB (also Draco-compressed) through
 // tinygltf and libdraco. Hand-written strict parsers: OpenMesh's readers narrow coordinates to
 // float and accept truncated or malformed files silently (see docs/mesh-io.md), which the
@@ -19,9 +19,10 @@
 namespace mm {
 
 struct ReadReport {
-  std::string format;                // "stl-binary", "stl-ascii", "obj", "off", "ply-ascii", "ply-binary", "3mf", "glb", "gltf"
+  std::string format;                // "stl-binary", "stl-ascii", "obj", "off", "off-binary", "ply-ascii", "ply-binary", "3mf", "glb", "gltf"
   std::string unit;                  // the file's length unit where it states one (3MF: "millimeter", ...; glTF: "meter"), else ""
   int objects = 1;                   // 3MF: build items read; glTF: triangle primitives read (all, concatenated)
+  bool draco = false;                // glTF: a primitive was Draco-compressed (KHR_draco_mesh_compression)
   int welded_vertices = 0;           // STL corners merged into an earlier vertex with equal coordinates
   int collapsed_faces = 0;           // faces that listed a vertex twice in a row; the repeat was removed
   int degenerate_faces_dropped = 0;  // faces with < 3 distinct vertices (or a vertex repeated apart)
@@ -46,15 +47,20 @@ Mesh read_mesh(const std::string& path, ReadReport* report = nullptr);
 Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::string& source,
                 ReadReport* report = nullptr);
 
+// A file's bytes with read_mesh's checks: InputError for a missing file, a folder, an empty file
+// or one over 2 GiB.
+std::string read_input_file(const std::string& path);
+
 // Writes by extension: .stl (binary, float32 coordinates, polygons fan-triangulated), .obj, .off,
 // .ply (ASCII, doubles in shortest round-trip form, so reading back gives identical positions),
 // .3mf (float32 coordinates, polygons fan-triangulated, one object, in options.unit), .glb and
-// .gltf (float32, fanned, one mesh; buffers embedded; coordinates written as they are).
+// .gltf (float32, fanned, one mesh; buffers embedded; Draco-compressed with options.draco_bits).
 // Written to a temporary file in the same folder, fsynced, then renamed over path: a failure
 // leaves nothing half-written. Creases and corners are not stored by these formats.
 // Throws InputError(path, reason) for an invalid mesh or an I/O failure.
 struct WriteOptions {
-  std::string unit;  // 3MF: the length unit (ReadReport::unit's names); "" = millimeter
+  std::string unit;    // 3MF: the length unit (ReadReport::unit's names); "" = millimeter
+  int draco_bits = 0;  // GLB/glTF: 0 = plain float32; 8..30 = Draco-compressed, positions quantised to these bits
 };
 void write_mesh(const Mesh& mesh, const std::string& path, const WriteOptions& options = {});
 // The bytes write_mesh writes to `path` (format from its extension), without writing them:

@@ -95,6 +95,8 @@ class Lines {
     return true;
   }
   int number() const { return number_; }
+  // Where the next line starts (past the end after the last line).
+  size_t offset() const { return pos_; }
 
  private:
   std::string_view text_;

@@ -155,7 +155,7 @@ std::string mesh_file_bytes(const Mesh& mesh, const std::string& path, const Wri
          : ext == ".off" ? off_text(mesh)
          : ext == ".ply" ? ply_text(mesh)
          : ext == ".3mf" ? formats::three_mf_bytes(mesh, options.unit, path)
-                         : formats::gltf_bytes(mesh, path, ext == ".glb");
+                         : formats::gltf_bytes(mesh, path, ext == ".glb", options.draco_bits);
 }
 
 void write_mesh(const Mesh& mesh, const std::string& path, const WriteOptions& options) {
