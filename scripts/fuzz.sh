@@ -26,6 +26,7 @@ cmake --build "$B" -j "$JOBS" --target fuzzers
 
 # Seed corpora (made once per build folder).
 C="$B/corpus"
+for t in $TARGETS; do [ -d "$C/$t" ] || rm -f "$C/ready"; done  # a target added since the corpus was made
 if [ ! -f "$C/ready" ]; then
   rm -rf "$C" && mkdir -p "$C"/{mesh,cad,stream,config,copy_record}
   seed_mesh() {  # seed_mesh FILE FORMAT_BYTE: the target reads the format from the first byte
@@ -77,6 +78,6 @@ for t in $TARGETS; do
     tail -30 "$B/findings/$t.log" >&2
     status=1
   fi
-  echo "fuzz $t: $(grep -m1 -o 'stat::number_of_executed_units: [0-9]*' "$B/findings/$t.log" | awk '{print $2}') executions in $(grep -m1 -o 'Done [0-9]* runs in [0-9]* second' "$B/findings/$t.log" | awk '{print $5}') s"
+  echo "fuzz $t: $(grep -o 'stat::number_of_executed_units: [0-9]*' "$B/findings/$t.log" | tail -1 | awk '{print $2}') executions in $(grep -m1 -o 'Done [0-9]* runs in [0-9]* second' "$B/findings/$t.log" | awk '{print $5}') s"
 done
 exit $status

@@ -4,6 +4,8 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <map>
 #include <utility>
 
@@ -118,6 +120,23 @@ TEST(Tessellate, BadFilesAreRefusedNamingTheFileAndTheReason) {
   bad = {};
   bad.angular_deflection_degrees = std::nan("");
   EXPECT_NE(reason(step, "step", bad).find("angular deflection"), std::string::npos);
+}
+
+// A STEP file whose oriented edge refers to itself makes OpenCASCADE recurse until its stack
+// overflows (found by fuzz_cad): the reader's process dies, this one reports it and goes on.
+TEST(Tessellate, AReaderThatCrashesIsAnInputErrorAndTheProcessGoesOn) {
+  std::ifstream in(std::string(MESHMARK_SOURCE_DIR) + "/tests/fuzz/regressions/cad/step-oriented-edge-refers-to-itself",
+                   std::ios::binary);
+  ASSERT_TRUE(in);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  try {
+    tessellate_cad(bytes.substr(1), "step", "hostile.step");  // the first byte is the fuzz target's format
+    ADD_FAILURE() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.source(), "hostile.step");
+    EXPECT_NE(e.reason().find("OpenCASCADE crashed reading it"), std::string::npos) << e.reason();
+  }
+  EXPECT_GT(tessellate_cad(cad::sample_solid_bytes("drilled_block", "step"), "step", "block").num_faces(), 0);
 }
 
 TEST(ReadPart, TakesMeshAndCadFormatsByExtension) {

@@ -3,6 +3,9 @@
 // solid, shell or loose face tessellated by BRepMesh_IncrementalMesh, and the faces' triangles
 // joined into one mesh. A file with several solids is one part (one asset): its solids together.
 //
+// OpenCASCADE runs in a child process (300 s, 8 GiB), so a file that crashes or exhausts it is
+// an InputError here, never a crash of the caller.
+//
 // The tessellation is deterministic for one OpenCASCADE version and the same options, so the
 // options and tessellation_key() are recorded with an asset: detection and an evidence package
 // years later redo the same mesh from the stored file.
