@@ -19,7 +19,7 @@ MM=$(realpath "${MESHMARK:-$here/build/daemon/meshmark}")
 MESHES=$(realpath "${MESHES:-$here/../shared/data/meshes}")
 W=${1:?usage: bench-formats.sh WORK_DIR}
 LIST=${LIST:-"fandisk.off abc9.stl"}
-rm -rf "$W" && mkdir -p "$W"/{parts,suspects,drop,out}
+rm -rf "$W" && mkdir -p "$W"/{parts,homes}
 W=$(realpath "$W")
 
 # The parts: every shared mesh in every mesh format (GLB also Draco-compressed), and the
@@ -41,32 +41,31 @@ for f in "$W"/parts/*; do
   printf '%s\t%s\t%s\n' "$(basename "$f")" "$(stat -c %s "$f")" "$(awk -v a="$t0" -v b="$t1" 'BEGIN { print b - a }')" >>"$W/reads.tsv"
 done
 
-"$MM" init --home "$W/home" >/dev/null
-for who in alice bob; do "$MM" customer add "$who" --home "$W/home" >/dev/null; done
-cat >"$W/meshmarkd.json" <<JSON
-{"home": "home", "drop_dir": "drop", "output_dir": "out", "workers": 1, "log_level": "warn"}
-JSON
+# One home per part file: the same part in nine formats is nine assets with one surface, which
+# would compete as candidates for each other's suspects.
+: >"$W/protect.jsonl"
+: >"$W/detections.jsonl"
 for f in "$W"/parts/*; do
-  for who in alice bob; do "$MM" submit protect --config "$W/meshmarkd.json" --customer "$who" "$f" >/dev/null; done
+  name=$(basename "$f")
+  H="$W/homes/$name"
+  mkdir -p "$H/drop" "$H/out" "$H/suspects"
+  "$MM" init --home "$H/home" >/dev/null
+  for who in alice bob; do "$MM" customer add "$who" --home "$H/home" >/dev/null; done
+  echo '{"home": "home", "drop_dir": "drop", "output_dir": "out", "workers": 1, "log_level": "warn"}' >"$H/meshmarkd.json"
+  for who in alice bob; do "$MM" submit protect --config "$H/meshmarkd.json" --customer "$who" "$f" >/dev/null; done
+  (cd "$H" && "$MM" run --until-empty --no-drops --config meshmarkd.json >/dev/null) || true
+  "$MM" jobs list --home "$H/home" --kind protect --json --limit 100 >"$H/protect.json"
+  python3 -c 'import json,sys; [print(json.dumps(j)) for j in json.load(open(sys.argv[1]))["jobs"]]' "$H/protect.json" >>"$W/protect.jsonl"
+  # Alice's copy, as issued and converted to STL.
+  copy=$(python3 -c 'import json,sys; print(next((j["result"]["output"] for j in json.load(open(sys.argv[1]))["jobs"] if j["payload"]["customer"] == "alice" and j.get("result")), ""))' "$H/protect.json")
+  [ -n "$copy" ] || continue
+  cp "$copy" "$H/suspects/$name--issued.${copy##*.}"
+  "$MM" convert "$copy" "$H/suspects/$name--stl.stl" >/dev/null
+  (cd "$H" && "$MM" submit detect --config meshmarkd.json "$H"/suspects/* >/dev/null)
+  (cd "$H" && "$MM" run --until-empty --no-drops --config meshmarkd.json >/dev/null) || true
+  "$MM" detections --home "$H/home" --json --limit 100 >"$H/detections.json"
+  python3 -c 'import json,sys; [print(json.dumps(d)) for d in json.load(open(sys.argv[1]))]' "$H/detections.json" >>"$W/detections.jsonl"
 done
-(cd "$W" && "$MM" run --until-empty --no-drops --config meshmarkd.json >/dev/null) || true
-
-# Alice's copy of each part, as issued and converted to STL.
-"$MM" jobs list --home "$W/home" --kind protect --json --limit 100000 >"$W/protect.json"
-python3 - "$W" <<'PY' | while IFS=$'\t' read -r part copy; do
-import json, sys
-for j in json.load(open(sys.argv[1] + "/protect.json"))["jobs"]:
-    r = j.get("result") or {}
-    if j["payload"]["customer"] == "alice" and "output" in r:
-        print(j["payload"]["name"] + "\t" + r["output"])
-PY
-  ext=${copy##*.}
-  cp "$copy" "$W/suspects/$part--issued.$ext"
-  "$MM" convert "$copy" "$W/suspects/$part--stl.stl" >/dev/null
-done
-(cd "$W" && "$MM" submit detect --config meshmarkd.json "$W"/suspects/* >/dev/null)
-(cd "$W" && "$MM" run --until-empty --no-drops --config meshmarkd.json >/dev/null) || true
-"$MM" detections --home "$W/home" --json --limit 100000 >"$W/detections.json"
 
 python3 - "$W" <<'PY'
 import json, sys, datetime
@@ -76,11 +75,11 @@ def seconds(j):
     t = lambda s: datetime.datetime.fromisoformat(s.replace("Z", "+00:00"))
     return (t(j["finished_at"]) - t(j["attempted_at"])).total_seconds() if j.get("finished_at") and j.get("attempted_at") else float("nan")
 protect = {}
-for j in json.load(open(w + "/protect.json"))["jobs"]:
+for j in map(json.loads, open(w + "/protect.jsonl")):
     if j["payload"]["customer"] == "alice":
         protect[j["payload"]["name"]] = j
 det = {}
-for d in json.load(open(w + "/detections.json")):
+for d in map(json.loads, open(w + "/detections.jsonl")):
     part, how = d["suspect_name"].rsplit(".", 1)[0].split("--")
     named = "+".join(sorted(a.get("customer", "?") for a in d["details"].get("attributed", []))) or "-"
     det[(part, how)] = (d["verdict"], named, d["details"].get("best_neg_log10_corrected_p", 0.0))
