@@ -9,18 +9,6 @@
 #include "meshio/read_mesh.h"
 
 namespace mm::cli {
-namespace {
-
-std::string lower_extension(const std::string& path) {
-  const auto slash = path.find_last_of('/');
-  const auto dot = path.find_last_of('.');
-  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
-  std::string ext = path.substr(dot + 1);
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return ext;
-}
-
-}  // namespace
 
 bool is_stream_path(const std::string& path) { return lower_extension(path) == "mmc"; }
 

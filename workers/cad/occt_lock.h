@@ -1,5 +1,5 @@
-// OpenCASCADE's data-exchange readers and writers keep process-wide state (the STEP parser's
-// tables, the static parameters): one of them runs at a time in a process.
+// OpenCASCADE's data-exchange writers keep process-wide state (the static parameters): the
+// sample writer runs one at a time in a process. Readers run in child processes (tessellate.h).
 #pragma once
 #include <mutex>
 

@@ -4,7 +4,6 @@
 #include <cctype>
 
 namespace mm {
-namespace {
 
 std::string lower_extension(const std::string& path) {
   const auto slash = path.find_last_of('/');
@@ -14,8 +13,6 @@ std::string lower_extension(const std::string& path) {
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return ext;
 }
-
-}  // namespace
 
 const std::vector<std::string>& part_formats() {
   static const std::vector<std::string> formats = [] {
