@@ -19,6 +19,7 @@
 #include "cli/mesh_files.h"
 #include "meshio/read_mesh.h"
 #include "render/image.h"
+#include "samples/part_family.h"
 #include "samples/samples.h"
 #include "cad/read_part.h"
 #include "cad/sample_solids.h"
@@ -36,6 +37,7 @@ void add_sample_command(CLI::App& app) {
   struct Args {
     std::string name, out;
     bool list = false;
+    std::uint64_t variant = 0;
   };
   auto a = std::make_shared<Args>();
   auto* c = app.add_subcommand("sample", "Write a generated CAD-like sample part (closed, sharp-featured)");
@@ -43,6 +45,9 @@ void add_sample_command(CLI::App& app) {
   c->add_option("output", a->out,
                 "file to write: a mesh (.off, .obj, .ply, .stl, ...), or for the CAD parts .step, .stp, .iges or .igs");
   c->add_flag("--list", a->list, "list the parts with their vertex and face counts");
+  c->add_option("--variant", a->variant,
+                "member of the part's family with seeded dimensions (0: the default part; mesh parts only)")
+      ->capture_default_str();
   c->callback([a] {
     const auto parts = samples::sample_parts();
     if (a->list) {
@@ -58,15 +63,17 @@ void add_sample_command(CLI::App& app) {
       const std::string ext = std::filesystem::path(a->out).extension().string();
       const std::string format = ext.empty() ? "" : ext.substr(1);
       if (!is_cad_format(format)) throw InputError(a->out, "a CAD sample is written as .step, .stp, .iges or .igs");
+      if (a->variant != 0) throw CLI::ValidationError("--variant", "the CAD samples have no variants");
       const std::string bytes = cad::sample_solid_bytes(name, format);
       support::write_file_atomic(a->out, bytes);
       std::cout << a->out << ": " << name << ", " << bytes.size() << " bytes\n";
       return;
     }
-    for (const auto& p : parts)
-      if (p.name == name) {
+    for (const auto& base : parts)
+      if (base.name == name) {
         if (!is_mesh_path(a->out))
           throw InputError(a->out, "unknown output type (expected " + mesh_format_list() + ")");
+        const samples::SamplePart p = samples::sample_variant(name, a->variant);
         write_mesh(p.mesh, a->out);
         std::cout << a->out << ": " << p.name << ", " << p.mesh.num_vertices() << " vertices, "
                   << p.mesh.num_faces() << " faces\n";

@@ -62,6 +62,12 @@ TEST(CliSample, ListsAndWritesPartsAcceptingDashOrUnderscore) {
   EXPECT_EQ(bad.code, 64);
   EXPECT_NE(bad.err.find("teapot"), std::string::npos) << bad.err;
   EXPECT_FALSE(exists(s / "c.off"));
+  EXPECT_RUN_OK(meshmark(s, {"sample", "plate_with_holes", s / "v.off", "--variant", "1"}));
+  EXPECT_EQ(read_mesh(s / "v.off").num_vertices(), 3602);
+  const CliRun cad = meshmark(s, {"sample", "drilled_block", s / "d.step", "--variant", "1"});
+  EXPECT_EQ(cad.code, 64);
+  EXPECT_NE(cad.err.find("no variants"), std::string::npos) << cad.err;
+  EXPECT_FALSE(exists(s / "d.step"));
 }
 
 TEST(CliKeygen, OwnerOnlyHexKeyNeverPrintedNeverOverwritten) {
