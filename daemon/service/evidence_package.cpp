@@ -15,6 +15,8 @@
 #include <set>
 #include <sstream>
 
+#include "cad/tessellate.h"
+#include "jobs/detect_suspect.h"
 #include "jobs/evidence_report.h"
 #include "service/build_info.h"
 #include "service/handlers.h"
@@ -421,7 +423,12 @@ EvidencePackage write_evidence_package(store::Store& st, const store::HomePaths&
   std::string picture_note;
   try {
     if (asset && st.blobs().contains(det->suspect_sha256)) {
-      const Mesh original = read_named_mesh(st.blobs().get(asset->sha256), asset->name);
+      // A CAD original is tessellated again as it was for the copy (the options its preparation
+      // key records), not with today's configuration.
+      TessellationOptions cad;
+      if (issued)
+        if (auto o = tessellation_options_in(jobs::copy_prepare_key(issued->params_json))) cad = *o;
+      const Mesh original = read_named_mesh(st.blobs().get(asset->sha256), asset->name, nullptr, cad);
       const Mesh suspect = read_named_mesh(st.blobs().get(det->suspect_sha256), det->suspect_name);
       std::optional<Mesh> copy;
       if (!decoded_path.empty() && fs::exists(decoded_path)) {

@@ -88,6 +88,15 @@ TEST(Tessellate, IsDeterministicAndFinerDeflectionGivesMoreTrianglesCloserToTheS
   // The bounding box OpenCASCADE measures is enlarged by the shape's tolerance (1e-7 mm).
   EXPECT_NEAR(info.linear_deflection_mm, 0.00005 * std::sqrt(2900.0), 1e-9);
   EXPECT_NE(tessellation_key(fine), tessellation_key({}));
+  // The options come back out of a preparation key that ends with the tessellation key, so an
+  // evidence package tessellates the stored original as it was tessellated for the copy.
+  const auto back = tessellation_options_in("tolerance=0.005;levels=3;" + tessellation_key(fine));
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->linear_deflection, fine.linear_deflection);
+  EXPECT_EQ(back->angular_deflection_degrees, fine.angular_deflection_degrees);
+  EXPECT_FALSE(tessellation_options_in("tolerance=0.005;levels=3"));
+  EXPECT_FALSE(tessellation_options_in("occt=7.6.3;linear=x;angular=15"));
+  EXPECT_FALSE(tessellation_options_in("occt=7.6.3;linear=-1;angular=15"));
 }
 
 TEST(Tessellate, SeveralSolidsInOneFileAreOnePart) {

@@ -21,6 +21,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -333,6 +334,23 @@ std::string occt_version() { return OCC_VERSION_COMPLETE; }
 std::string tessellation_key(const TessellationOptions& options) {
   return "occt=" + occt_version() + ";linear=" + shortest_text(options.linear_deflection) +
          ";angular=" + shortest_text(options.angular_deflection_degrees);
+}
+
+std::optional<TessellationOptions> tessellation_options_in(const std::string& text) {
+  const size_t at = text.find("occt=");
+  if (at == std::string::npos) return std::nullopt;
+  auto number = [&](const std::string& name) -> std::optional<double> {
+    const size_t k = text.find(";" + name + "=", at);
+    if (k == std::string::npos) return std::nullopt;
+    const char* begin = text.c_str() + k + name.size() + 2;
+    char* end = nullptr;
+    const double v = std::strtod(begin, &end);
+    if (end == begin || !std::isfinite(v) || !(v > 0)) return std::nullopt;
+    return v;
+  };
+  const auto linear = number("linear"), angular = number("angular");
+  if (!linear || !angular) return std::nullopt;
+  return TessellationOptions{*linear, *angular};
 }
 
 Mesh tessellate_cad(std::string_view bytes, const std::string& format, const std::string& source,

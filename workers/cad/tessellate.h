@@ -10,6 +10,7 @@
 // options and tessellation_key() are recorded with an asset: detection and an evidence package
 // years later redo the same mesh from the stored file.
 #pragma once
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -41,6 +42,9 @@ bool is_cad_format(const std::string& extension);
 std::string occt_version();
 // The options and the OpenCASCADE version as one text, for cache keys and records.
 std::string tessellation_key(const TessellationOptions& options);
+// The options a key made by tessellation_key records, found anywhere in `text` (a preparation
+// key ends with it); nullopt when it holds none or they do not parse.
+std::optional<TessellationOptions> tessellation_options_in(const std::string& text);
 
 // The part in `bytes` (format: one of is_cad_format's), tessellated. Vertices are numbered in
 // order of first appearance over the faces in the file's order; coordinates equal to the last
