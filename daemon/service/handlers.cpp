@@ -518,6 +518,8 @@ DetectionRecord detect_record(store::Store& st, const jobs::Suspect& suspect, co
             {"matched_fraction", t.alignment.matched_fraction},
             {"attack_model", t.alignment.attack_model},
             {"copies", json::array()}};
+    if (auto a = det.region_agreement.find(t.asset_id); a != det.region_agreement.end())
+      cj["region_agreement"] = a->second;
     for (const auto& s : t.scores)
       cj["copies"].push_back({{"copy_id", s.copy_id},
                               {"correlation", s.correlation},

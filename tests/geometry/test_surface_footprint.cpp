@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "geometry/surface_footprint.h"
+#include "samples/chamfered_block.h"
 
 namespace {
 
@@ -67,6 +68,48 @@ TEST(SurfaceFootprint, ANeighbouringCellAbsorbsNoiseButNotAShift) {
   std::vector<Eigen::Vector3d> beyond = near;
   beyond.emplace_back(4.5, 1.0, 1.0);
   EXPECT_EQ(mm::covered_fraction(f, mm::footprint_probe(points_mesh(beyond))), 0.0);
+}
+
+// The faces of a mesh whose vertices all lie at x <= cut, and those vertices (a crop).
+mm::Mesh keep_below_x(const mm::Mesh& m, double cut) {
+  mm::Mesh out;
+  std::vector<int> index(static_cast<size_t>(m.num_vertices()), -1);
+  std::vector<Eigen::RowVector3d> kept;
+  for (const auto& f : m.faces) {
+    bool in = true;
+    for (int v : f) in = in && m.points(v, 0) <= cut;
+    if (!in) continue;
+    std::vector<int> g;
+    for (int v : f) {
+      if (index[static_cast<size_t>(v)] < 0) index[static_cast<size_t>(v)] = static_cast<int>(kept.size()), kept.push_back(m.points.row(v));
+      g.push_back(index[static_cast<size_t>(v)]);
+    }
+    out.faces.push_back(g);
+  }
+  out.points.resize(static_cast<Eigen::Index>(kept.size()), 3);
+  for (size_t i = 0; i < kept.size(); ++i) out.points.row(static_cast<Eigen::Index>(i)) = kept[i];
+  return out;
+}
+
+TEST(SurfaceFootprint, RegionAgreementRanksThePartACropCameFromAndTiesPartsAlikeThere) {
+  auto block = [](double x, double z) {
+    mm::samples::ChamferedBlock p;
+    p.size_x = x, p.size_y = 30, p.size_z = z;
+    return mm::samples::chamfered_block(p);
+  };
+  const mm::Mesh part = block(40, 20), longer = block(60, 20), taller = block(40, 30);
+  const mm::Mesh half = keep_below_x(part, 20);
+  const double own = mm::region_agreement(mm::surface_footprint(part), half);
+  const double alike = mm::region_agreement(mm::surface_footprint(longer), half);
+  const double unlike = mm::region_agreement(mm::surface_footprint(taller), half);
+  EXPECT_GT(own, 0.9);
+  EXPECT_NEAR(alike, own, 0.05);  // identical over the crop's region: only a mark tells them apart
+  EXPECT_LT(unlike, own - 0.2);   // its top face is elsewhere, its walls run on past the crop's top
+  // Both footprints hold the crop: covered_fraction alone cannot rank them.
+  const mm::FootprintProbe probe = mm::footprint_probe(half);
+  EXPECT_GT(mm::covered_fraction(mm::surface_footprint(taller), probe, 0), 0.6);
+  EXPECT_EQ(mm::region_agreement(mm::SurfaceFootprint{}, half), 0.0);
+  EXPECT_EQ(mm::region_agreement(mm::surface_footprint(part), mm::Mesh{}), 0.0);
 }
 
 TEST(SurfaceFootprint, SurvivesItsJsonAndRefusesMalformedJson) {

@@ -220,6 +220,36 @@ TEST_F(DetectSuspect, AHalfCropOfAnIssuedCopyIsFoundAmongAThousandAssetsAndAttri
   for (const auto& a : d.attributed) EXPECT_EQ(a.customer_id, 1);
 }
 
+TEST_F(DetectSuspect, AssetsAlikeOverACropAreAllTriedAndOnlyTheIssuingCopyIsNamed) {
+  // Five more assets with the part's own footprint (a family whose members share the cropped
+  // region): they tie with the part, so all are tried even with max_candidates 1, and each
+  // copy tried counts in the correction.
+  MemoryStore st = part->store;
+  const PolyhedronRecord real = st.polyhedra.at({1, "a"});
+  for (std::int64_t id = 2; id <= 6; ++id) {
+    PolyhedronRecord row = real;
+    row.id = id + 100;
+    st.polyhedra[{id, "a"}] = row;
+    IssuedCopyRecord c = part->issued[1].record;  // customer 2's copy, as if issued for this asset
+    c.id = 1000 + id;
+    c.asset_id = id;
+    st.copies.push_back(c);
+  }
+  DetectOptions one;
+  one.max_candidates = 1;
+  const Mesh half = attacks::crop_along_longest_axis(part->issued[0].decoded, 0.5);
+  const Detection d = detect_suspect(st, suspect(half, "unknown"), one);
+  EXPECT_EQ(d.match, "surface footprint");
+  ASSERT_EQ(d.candidates.size(), 6u);
+  ASSERT_EQ(d.region_agreement.size(), 6u);
+  for (const auto& [id, a] : d.region_agreement) EXPECT_EQ(a, d.region_agreement.at(1)) << id;
+  EXPECT_GT(d.region_agreement.at(1), 0.8);  // the mark moves some of the surface across cell boundaries
+  EXPECT_EQ(d.copies_tried, 3 + 5);
+  EXPECT_EQ(d.verdict, "attributed") << d.best_neg_log10_corrected_p;
+  ASSERT_EQ(d.attributed.size(), 1u);
+  EXPECT_EQ(d.attributed[0].copy_id, 11);
+}
+
 TEST_F(DetectSuspect, AStreamIsFoundByTheAssetItNames) {
   Suspect s = suspect(part->issued[2].decoded, "unknown");
   s.stream_metadata["asset"] = sha_of("original");

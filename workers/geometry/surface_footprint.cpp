@@ -46,6 +46,33 @@ bool valid_face(const Mesh& m, const std::vector<int>& face) {
   return true;
 }
 
+// Marks in `cells` (the footprint's grid) every cell the mesh's vertices and faces touch; each
+// face is sampled on a barycentric grid finer than half a cell, at most max_steps a side (a
+// degenerate sliver of a huge face is capped).
+void mark_surface(const SurfaceFootprint& f, const Mesh& mesh, int max_steps, std::vector<bool>& cells) {
+  const Points& p = mesh.points;
+  auto mark = [&](const Eigen::Vector3d& q) {
+    int c[3];
+    const long i = cell_index(f, q, c);
+    if (i >= 0) cells[static_cast<size_t>(i)] = true;
+  };
+  for (Eigen::Index v = 0; v < p.rows(); ++v) mark(p.row(v).transpose());
+  for (const auto& face : mesh.faces) {
+    if (!valid_face(mesh, face)) continue;
+    const Eigen::Vector3d a = p.row(face[0]).transpose();
+    for (size_t k = 1; k + 1 < face.size(); ++k) {
+      const Eigen::Vector3d b = p.row(face[k]).transpose(), c = p.row(face[k + 1]).transpose();
+      const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+      const int n = std::min(max_steps, static_cast<int>(std::ceil(2 * longest / f.cell)));
+      for (int i = 0; i <= n; ++i)
+        for (int j = 0; i + j <= n; ++j) {
+          const double u = n == 0 ? 0 : static_cast<double>(i) / n, w = n == 0 ? 0 : static_cast<double>(j) / n;
+          mark(a + u * (b - a) + w * (c - a));
+        }
+    }
+  }
+}
+
 }  // namespace
 
 SurfaceFootprint surface_footprint(const Mesh& mesh, int cells_along_largest) {
@@ -63,27 +90,7 @@ SurfaceFootprint surface_footprint(const Mesh& mesh, int cells_along_largest) {
   f.lo.array() -= 0.5 * f.cell;
   for (int a = 0; a < 3; ++a) f.dims[a] = std::max(1, static_cast<int>(std::floor((hi[a] - f.lo[a]) / f.cell)) + 1);
   f.occupied.assign(static_cast<size_t>(f.dims[0]) * f.dims[1] * f.dims[2], false);
-  auto mark = [&](const Eigen::Vector3d& q) {
-    int c[3];
-    const long i = cell_index(f, q, c);
-    if (i >= 0) f.occupied[static_cast<size_t>(i)] = true;
-  };
-  for (Eigen::Index v = 0; v < p.rows(); ++v) mark(p.row(v).transpose());
-  for (const auto& face : mesh.faces) {
-    if (!valid_face(mesh, face)) continue;
-    const Eigen::Vector3d a = p.row(face[0]).transpose();
-    for (size_t k = 1; k + 1 < face.size(); ++k) {
-      const Eigen::Vector3d b = p.row(face[k]).transpose(), c = p.row(face[k + 1]).transpose();
-      const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-      // Grid steps under half a cell; a degenerate sliver of a huge face is capped.
-      const int n = std::min(4 * cells_along_largest, static_cast<int>(std::ceil(2 * longest / f.cell)));
-      for (int i = 0; i <= n; ++i)
-        for (int j = 0; i + j <= n; ++j) {
-          const double u = n == 0 ? 0 : static_cast<double>(i) / n, w = n == 0 ? 0 : static_cast<double>(j) / n;
-          mark(a + u * (b - a) + w * (c - a));
-        }
-    }
-  }
+  mark_surface(f, mesh, 4 * cells_along_largest, f.occupied);
   return f;
 }
 
@@ -120,6 +127,28 @@ double covered_fraction(const SurfaceFootprint& footprint, const FootprintProbe&
   for (Eigen::Index k = 0; k < probe.points.rows(); ++k)
     if (near_occupied(f, probe.points.row(k).transpose(), reach)) ++covered;
   return static_cast<double>(covered) / static_cast<double>(probe.points.rows());
+}
+
+double region_agreement(const SurfaceFootprint& footprint, const Mesh& suspect) {
+  const SurfaceFootprint& f = footprint;
+  if (f.empty() || suspect.num_vertices() == 0 || !suspect.points.allFinite()) return 0;
+  std::vector<bool> mine(f.occupied.size(), false);
+  mark_surface(f, suspect, 128, mine);
+  // The suspect's cell range, clamped to the grid; the part's cells outside it are not compared.
+  int lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::clamp(static_cast<int>(std::floor((suspect.points.col(a).minCoeff() - f.lo[a]) / f.cell)), 0, f.dims[a] - 1);
+    hi[a] = std::clamp(static_cast<int>(std::floor((suspect.points.col(a).maxCoeff() - f.lo[a]) / f.cell)), 0, f.dims[a] - 1);
+  }
+  long both = 0, either = 0;
+  for (int z = lo[2]; z <= hi[2]; ++z)
+    for (int y = lo[1]; y <= hi[1]; ++y)
+      for (int x = lo[0]; x <= hi[0]; ++x) {
+        const size_t i = static_cast<size_t>((static_cast<long>(z) * f.dims[1] + y) * f.dims[0] + x);
+        both += mine[i] && f.occupied[i];
+        either += mine[i] || f.occupied[i];
+      }
+  return either == 0 ? 0 : static_cast<double>(both) / static_cast<double>(either);
 }
 
 std::string SurfaceFootprint::to_json() const {

@@ -44,4 +44,12 @@ FootprintProbe footprint_probe(const Mesh& suspect, int max_points = 2000);
 double covered_fraction(const SurfaceFootprint& footprint, const FootprintProbe& probe, int reach = 1,
                         int min_cells = 8);
 
+// How alike the part's surface and the suspect's are over the suspect's cell range: the cells
+// the suspect's faces touch (sampled as surface_footprint samples the part's) against the part's
+// cells there, |both| / |either|. A crop of the part scores near 1 (less where a mark or noise
+// moves its surface across a cell boundary); another part that also holds the crop but has more
+// surface in that region (other holes, a wall) scores less. 0 for an empty footprint or suspect.
+// Parts identical over the region tie: only the mark tells them apart.
+double region_agreement(const SurfaceFootprint& footprint, const Mesh& suspect);
+
 }  // namespace mm

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 #include <nlohmann/json.hpp>
 
 #include "jobs/payload.h"
@@ -19,6 +20,10 @@ using nlohmann::json;
 // about half in the shared parts' measurements, docs/daemon.md).
 constexpr double kCoveredNear = 0.9;
 constexpr double kCoveredExact = 0.6;
+// Covering assets whose region agreement is this close to the best one's are all tried, up to
+// kMaxTied: a crop of one of several parts that share that region matches each of them.
+constexpr double kAgreementTie = 0.05;
+constexpr int kMaxTied = 12;
 
 const char* method_name(Method m) { return m == Method::Additive ? "additive" : "multiplicative"; }
 
@@ -54,6 +59,7 @@ AssetShape asset_shape(DetectionStore& st, std::int64_t asset_id, const std::vec
 std::vector<std::int64_t> candidate_assets(DetectionStore& st, const Suspect& suspect,
                                            const std::map<std::int64_t, std::vector<IssuedCopyRecord>>& copies_of,
                                            int max_candidates, std::string* match,
+                                           std::map<std::int64_t, double>* agreement,
                                            std::vector<std::string>* warnings) {
   std::vector<std::int64_t> candidates;
   auto add = [&](std::int64_t id) {
@@ -81,13 +87,18 @@ std::vector<std::int64_t> candidate_assets(DetectionStore& st, const Suspect& su
   if (candidates.empty()) {
     const ShapeSignature sig = shape_signature(suspect.mesh);
     const FootprintProbe probe = footprint_probe(suspect.mesh);
-    std::vector<std::pair<double, std::int64_t>> covering, resembling;
+    std::vector<std::tuple<double, double, std::int64_t>> covering;  // -agreement, -exact, asset
+    std::vector<std::pair<double, std::int64_t>> resembling;
     for (const auto& [asset_id, copies] : copies_of) {
       const AssetShape shape = asset_shape(st, asset_id, copies, warnings);
       if (shape.footprint) {
         if (covered_fraction(*shape.footprint, probe) >= kCoveredNear) {
           const double exact = covered_fraction(*shape.footprint, probe, 0);
-          if (exact >= kCoveredExact) covering.push_back({-exact, asset_id});
+          if (exact >= kCoveredExact) {
+            const double a = region_agreement(*shape.footprint, suspect.mesh);
+            covering.push_back({-a, -exact, asset_id});
+            (*agreement)[asset_id] = a;
+          }
         }
       }
       if (shape.signature) {
@@ -97,10 +108,22 @@ std::vector<std::int64_t> candidate_assets(DetectionStore& st, const Suspect& su
     }
     std::sort(covering.begin(), covering.end());
     std::sort(resembling.begin(), resembling.end());
-    for (const auto& r : covering.empty() ? resembling : covering)
-      if (static_cast<int>(candidates.size()) < max_candidates) add(r.second);
-    if (!candidates.empty())
-      *match = covering.empty() ? "shape signature" : "surface footprint";
+    if (!covering.empty()) {
+      // The best max_candidates, and every further one as alike over the suspect's region as the
+      // best (within kAgreementTie): parts identical there differ only in their marks.
+      const double best = -std::get<0>(covering.front());
+      for (const auto& [neg_a, neg_exact, id] : covering) {
+        const int n = static_cast<int>(candidates.size());
+        if (n < max_candidates || (-neg_a >= best - kAgreementTie && n < kMaxTied)) add(id);
+      }
+      *match = "surface footprint";
+    } else {
+      for (const auto& r : resembling)
+        if (static_cast<int>(candidates.size()) < max_candidates) add(r.second);
+      if (!candidates.empty()) *match = "shape signature";
+    }
+    for (auto it = agreement->begin(); it != agreement->end();)
+      it = std::find(candidates.begin(), candidates.end(), it->first) == candidates.end() ? agreement->erase(it) : std::next(it);
   }
   return candidates;
 }
@@ -247,7 +270,8 @@ Detection detect_suspect(DetectionStore& st, const Suspect& suspect, const Detec
   for (auto& c : st.issued_copies()) copies_of[c.asset_id].push_back(std::move(c));
 
   Detection d;
-  d.candidates = candidate_assets(st, suspect, copies_of, options.max_candidates, &d.match, &d.warnings);
+  d.candidates = candidate_assets(st, suspect, copies_of, options.max_candidates, &d.match, &d.region_agreement,
+                                  &d.warnings);
 
   // Every copy ever issued for a candidate, grouped by the polyhedron it was embedded in (a
   // change of compression options gives later copies another polyhedron).

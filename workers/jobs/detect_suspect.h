@@ -102,6 +102,7 @@ struct Detection {
   std::string match;  // how the candidates were found ("" when none was)
   std::string reason;  // why an inconclusive verdict names no one
   std::vector<std::int64_t> candidates;
+  std::map<std::int64_t, double> region_agreement;  // candidates found by footprint: region_agreement()
   int copies_tried = 0;
   std::vector<PolyhedronTried> tried;
   std::optional<std::int64_t> asset_id, copy_id, customer_id;  // the best copy's, when attributed

@@ -61,7 +61,7 @@ SamplePart sample_variant(const std::string& name, std::uint64_t variant) {
   }
   if (name == "chamfered_block") {
     ChamferedBlock p;
-    const double sides[] = {20, 30, 40, 50, 60}, chamfers[] = {2, 3, 4};
+    const double sides[] = {20, 25, 30, 35, 40, 45, 50, 55, 60}, chamfers[] = {2, 3, 4};
     p.size_x = d.pick(sides);
     p.size_y = d.pick(sides);
     p.size_z = d.pick(sides) / 2;
@@ -70,7 +70,8 @@ SamplePart sample_variant(const std::string& name, std::uint64_t variant) {
   }
   if (name == "flanged_cylinder") {
     FlangedCylinder p;
-    const double bores[] = {6, 8, 10}, walls[] = {3, 4, 6}, flanges[] = {6, 10, 14}, heights[] = {20, 30, 40};
+    const double bores[] = {5, 6, 8, 10, 12}, walls[] = {3, 4, 5, 6}, flanges[] = {6, 8, 10, 14},
+                 heights[] = {20, 25, 30, 40};
     p.bore_radius = d.pick(bores);
     p.tube_radius = p.bore_radius + d.pick(walls);
     p.flange_radius = p.tube_radius + d.pick(flanges);
