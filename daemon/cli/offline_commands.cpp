@@ -89,7 +89,7 @@ void add_sample_command(CLI::App& app) {
 // A part in another mesh format: what a partner's tool does to a copy, and the benchmarks' converter.
 void add_convert_command(CLI::App& app) {
   struct Args {
-    std::string in, out;
+    std::string in, out, object;
     int draco_bits = 0;
   };
   auto a = std::make_shared<Args>();
@@ -98,13 +98,14 @@ void add_convert_command(CLI::App& app) {
   c->add_option("output", a->out, "mesh file to write (" + mesh_format_list() + ")")->required();
   c->add_option("--draco-bits", a->draco_bits, "GLB or glTF output: Draco-compressed, positions quantised to these bits")
       ->check(CLI::Range(8, 30));
+  c->add_option("--object", a->object, "3MF input: only the build items whose object has this name");
   c->callback([a] {
     if (!is_mesh_path(a->out)) throw InputError(a->out, "unknown output type (expected " + mesh_format_list() + ")");
     if (std::filesystem::weakly_canonical(a->in) == std::filesystem::weakly_canonical(a->out))
       throw CommandFailed(1, a->out + ": the output would overwrite the input");
     PartReport report;
-    const Mesh m = read_part(a->in, {}, &report);
-    write_mesh(m, a->out, WriteOptions{report.read.unit, a->draco_bits});
+    const Mesh m = read_part(a->in, {}, &report, ReadOptions{a->object});
+    write_mesh(m, a->out, WriteOptions{report.read.unit, a->draco_bits, a->object});
     std::cout << a->out << ": " << m.num_vertices() << " vertices, " << m.num_faces() << " faces\n";
   });
 }
@@ -193,6 +194,11 @@ void add_offline_commands(CLI::App& app) {
       std::cout << " (" << t->format << ": " << t->solids << " solid(s), " << t->faces
                 << " faces tessellated by OpenCASCADE " << t->occt_version << " at " << t->linear_deflection_mm
                 << " mm and " << t->options.angular_deflection_degrees << " degrees)";
+    if (!report.read.object_names.empty()) {
+      std::cout << " (3MF build items:";
+      for (const auto& n : report.read.object_names) std::cout << " \"" << n << "\"";
+      std::cout << ")";
+    }
     std::cout << "\n";
   });
   add_sample_command(app);

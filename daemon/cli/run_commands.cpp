@@ -20,7 +20,7 @@ using nlohmann::json;
 namespace fs = std::filesystem;
 
 struct SubmitOptions {
-  std::string home, config, customer, format;
+  std::string home, config, customer, format, object;
   std::vector<std::string> files;
   int max_attempts = 5;
   bool json = false;
@@ -46,7 +46,7 @@ void submit(SubmitOptions& o, bool protect) {
       json out = json::array();
       for (const auto& f : o.files) {
         std::string name = fs::path(f).filename().string();
-        auto r = protect ? service::submit_protect(*st, o.customer, f, name, o.max_attempts, "cli", o.format)
+        auto r = protect ? service::submit_protect(*st, o.customer, f, name, o.max_attempts, "cli", o.format, o.object)
                          : service::submit_detect(*st, f, name, o.max_attempts, "cli");
         if (o.json)
           out.push_back({{"file", f}, {"job_id", r.job.id}, {"kind", r.job.kind}, {"created", r.created},
@@ -80,6 +80,7 @@ void add_run_commands(CLI::App& app) {
       cmd->add_option("--customer", o->customer, "customer name")->required();
       cmd->add_option("--format", o->format, "output format (default: output_format of the config at run time)")
           ->check(CLI::IsMember(mesh_formats()));
+      cmd->add_option("--object", o->object, "3MF parts: protect only the build items whose object has this name");
     }
     cmd->add_option("files", o->files, "mesh files (STL, OBJ, OFF, PLY, 3MF, glTF, GLB)")->required()->check(CLI::ExistingFile);
     cmd->callback([o, protect] { submit(*o, protect); });

@@ -425,10 +425,15 @@ EvidencePackage write_evidence_package(store::Store& st, const store::HomePaths&
     if (asset && st.blobs().contains(det->suspect_sha256)) {
       // A CAD original is tessellated again as it was for the copy (the options its preparation
       // key records), not with today's configuration.
+      // A 3MF original is read as the object the copy was made of.
       TessellationOptions cad;
-      if (issued)
-        if (auto o = tessellation_options_in(jobs::copy_prepare_key(issued->params_json))) cad = *o;
-      const Mesh original = read_named_mesh(st.blobs().get(asset->sha256), asset->name, nullptr, cad);
+      std::string object;
+      if (issued) {
+        const std::string key = jobs::copy_prepare_key(issued->params_json);
+        if (auto o = tessellation_options_in(key)) cad = *o;
+        object = object_of_prepare_key(key);
+      }
+      const Mesh original = read_named_mesh(st.blobs().get(asset->sha256), asset->name, nullptr, cad, object);
       const Mesh suspect = read_named_mesh(st.blobs().get(det->suspect_sha256), det->suspect_name);
       std::optional<Mesh> copy;
       if (!decoded_path.empty() && fs::exists(decoded_path)) {

@@ -124,7 +124,7 @@ std::vector<std::uint8_t> input_bytes(store::Store& st, const json& p, const sto
 
 Mesh parse_input(const std::vector<std::uint8_t>& bytes, const std::string& name,
                  std::map<std::string, std::string>* stream_metadata, const TessellationOptions& cad,
-                 PartReport* report = nullptr) {
+                 PartReport* report = nullptr, const std::string& object = "") {
   std::string fmt = format_of(name, stream_metadata != nullptr);
   try {
     if (fmt == "mmc") {
@@ -133,7 +133,7 @@ Mesh parse_input(const std::vector<std::uint8_t>& bytes, const std::string& name
       return d.mesh;
     }
     return parse_part(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), fmt, name, cad,
-                      report);
+                      report, ReadOptions{object});
   } catch (const InputError& e) {
     throw PermanentError(e.what());
   }
@@ -209,10 +209,12 @@ jobs::PreparedAsset prepare_within_tolerance(const Mesh& mesh, const jobs::Prepa
 
 LoadedAsset get_or_prepare(store::Store& st, const std::string& sha, const std::vector<std::uint8_t>& bytes,
                            const std::string& name, const Mesh& mesh, const PartReport& read, const Config& cfg,
-                           RefusedParts* refused) {
+                           RefusedParts* refused, const std::string& object) {
   jobs::PrepareParams pp = prepare_params(cfg);
   // A CAD part's mesh is its tessellation: other options (or another OpenCASCADE) prepare it again.
-  const std::string key = pp.key() + (read.tessellation ? ";" + tessellation_key(read.tessellation->options) : "");
+  // One 3MF object of a build is its own polyhedron; the key ends with its name.
+  const std::string key = pp.key() + (read.tessellation ? ";" + tessellation_key(read.tessellation->options) : "") +
+                          (object.empty() ? "" : std::string(kObjectKey) + object);
   const std::optional<store::Asset> existing = st.find_asset(sha);
   if (existing)
     if (auto row = st.find_polyhedron(existing->id, key)) return {*existing, *row, decode_row(st, *row)};
@@ -281,9 +283,15 @@ void check_triangles(const Mesh& mesh, const std::string& name, const Config& cf
 }
 
 Mesh read_named_mesh(const std::vector<std::uint8_t>& bytes, const std::string& name,
-                     std::map<std::string, std::string>* stream_metadata, const TessellationOptions& cad) {
+                     std::map<std::string, std::string>* stream_metadata, const TessellationOptions& cad,
+                     const std::string& object) {
   std::map<std::string, std::string> metadata;
-  return parse_input(bytes, name, stream_metadata ? stream_metadata : &metadata, cad);
+  return parse_input(bytes, name, stream_metadata ? stream_metadata : &metadata, cad, nullptr, object);
+}
+
+std::string object_of_prepare_key(const std::string& key) {
+  const size_t at = key.find(kObjectKey);
+  return at == std::string::npos ? "" : key.substr(at + std::string(kObjectKey).size());
 }
 
 std::string output_base_for(const Config& cfg, const std::string& customer, const std::string& name,
@@ -318,13 +326,17 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   std::string name = fs::path(str_field(p, "name", job)).filename().string();
   if (name.empty() || name == "." || name == "..") throw PermanentError("job " + std::to_string(job.id) + ": bad name");
   std::string out_format = str_field(p, "output_format", job, false);
+  const std::string object = str_field(p, "object", job, false);
+  if (object.size() > 256 || std::any_of(object.begin(), object.end(), [](unsigned char c) { return c < 0x20 || c == 0x7f; }))
+    throw PermanentError("job " + std::to_string(job.id) + ": payload \"object\" must be a 3MF object name of at most 256 "
+                         "printable bytes");
   auto customer = st.find_customer(customer_name);
   if (!customer) throw PermanentError("unknown customer \"" + customer_name + "\" (add it with: meshmark customer add)");
 
   std::string sha;
   auto bytes = input_bytes(st, p, job, &sha, ctx.config);
   PartReport read;
-  Mesh mesh = parse_input(bytes, name, nullptr, cfg.cad, &read);
+  Mesh mesh = parse_input(bytes, name, nullptr, cfg.cad, &read, object);
   check_triangles(mesh, name, cfg);
   std::string in_format = format_of(name);
   // A CAD part's copy is a mesh: cad.copy_format unless the job or output_format names one.
@@ -333,7 +345,7 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   if (!is_mesh_format(out_format))
     throw PermanentError("job " + std::to_string(job.id) + ": unsupported output_format \"" + out_format + "\"");
 
-  LoadedAsset la = get_or_prepare(st, sha, bytes, name, mesh, read, cfg, refused);
+  LoadedAsset la = get_or_prepare(st, sha, bytes, name, mesh, read, cfg, refused, object);
   const store::Asset& asset = la.asset;
   store::CustomerKey ck = st.customer_key(customer->id);
 
@@ -392,7 +404,7 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
   const int draco_bits = read.read.draco && (out_format == "glb" || out_format == "gltf") ? cfg.stream_bits : 0;
   try {
     // A copy keeps the part's unit where both formats state one (3MF).
-    decoded_bytes = mesh_file_bytes(files.decoded, out, WriteOptions{read.read.unit, draco_bits});
+    decoded_bytes = mesh_file_bytes(files.decoded, out, WriteOptions{read.read.unit, draco_bits, object});
   } catch (const InputError& e) {
     throw PermanentError(name + ": cannot write the decoded copy: " + e.what());
   }
@@ -463,6 +475,7 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
               {"mark_rms", cost.rms}};
   if (!warning.empty()) result["warning"] = warning;
   if (read.tessellation) result["tessellation"] = tessellation_json(*read.tessellation, sha);
+  if (!object.empty()) result["object"] = object;
   result["output_bytes"] = decoded_bytes.size();
   rec.result_json = result.dump();
   return rec;
@@ -688,15 +701,17 @@ HandlerMap default_handlers() {
 
 store::EnqueueResult submit_protect(store::Store& st, const std::string& customer, const std::string& path,
                                     const std::string& name, int max_attempts, const std::string& actor,
-                                    const std::string& output_format) {
+                                    const std::string& output_format, const std::string& object) {
   std::string sha = st.blobs().put_file(path);
   json p{{"customer", customer}, {"input_sha256", sha}, {"name", name}};
   if (!output_format.empty()) p["output_format"] = output_format;
+  if (!object.empty()) p["object"] = object;
   store::JobSpec spec;
   spec.kind = "protect";
   spec.payload_json = p.dump();
   spec.max_attempts = max_attempts;
-  spec.idempotency_key = "protect:" + customer + ":" + sha + ":" + name + (output_format.empty() ? "" : ":" + output_format);
+  spec.idempotency_key = "protect:" + customer + ":" + sha + ":" + name + (output_format.empty() ? "" : ":" + output_format) +
+                         (object.empty() ? "" : ":object=" + object);
   return st.enqueue(spec, actor);
 }
 

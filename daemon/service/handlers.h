@@ -101,15 +101,20 @@ void check_triangles(const Mesh& mesh, const std::string& name, const Config& cf
 // cannot be. A stream's metadata goes to stream_metadata when given.
 Mesh read_named_mesh(const std::vector<std::uint8_t>& bytes, const std::string& name,
                      std::map<std::string, std::string>* stream_metadata = nullptr,
-                     const TessellationOptions& cad = {});
+                     const TessellationOptions& cad = {}, const std::string& object = "");
+
+// A preparation key of one 3MF object ends with kObjectKey and the object's name.
+inline constexpr const char* kObjectKey = ";object=";
+// The 3MF object a preparation key names, or "" (the whole part).
+std::string object_of_prepare_key(const std::string& key);
 
 // Submitting: the file's bytes go into the blob store first (so the job does not depend on the
 // file staying where it is), then the job is enqueued with an idempotency key derived from what
 // it is (kind, customer, content hash, name): submitting the same thing twice returns the first
-// job. output_format "" = from the config at run time.
+// job. output_format "" = from the config at run time; object: a 3MF part's object ("" = all).
 store::EnqueueResult submit_protect(store::Store& st, const std::string& customer, const std::string& path,
                                     const std::string& name, int max_attempts, const std::string& actor,
-                                    const std::string& output_format = "");
+                                    const std::string& output_format = "", const std::string& object = "");
 store::EnqueueResult submit_detect(store::Store& st, const std::string& path, const std::string& name,
                                    int max_attempts, const std::string& actor);
 

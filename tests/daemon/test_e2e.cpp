@@ -19,6 +19,7 @@
 #include <random>
 #include <set>
 #include <thread>
+#include <tuple>
 
 #include "common/shared_meshes.h"
 #include "codec/stream.h"
@@ -611,6 +612,60 @@ TEST_F(E2E, StepAndDracoGlbPartsAreProtectedAndTheirLeaksTraced) {
   run_until_empty();
   const auto dets = st->list_detections();
   ASSERT_EQ(dets.size(), 8u);
+  for (const auto& det : dets) {
+    EXPECT_EQ(det.verdict, "attributed") << det.suspect_name << " " << det.details_json.substr(0, 400);
+    ASSERT_TRUE(det.customer_id.has_value()) << det.suspect_name;
+    EXPECT_EQ(st->get_customer(*det.customer_id)->name, customer_of[det.suspect_name]) << det.suspect_name;
+  }
+}
+
+// A 3MF build of two named parts: each customer is issued a copy of one object (`--object`),
+// written as a 3MF of that object alone with its name and unit; both leaks are traced to their
+// customers, and an object the build does not hold fails its job with the names it does hold.
+TEST_F(E2E, OneObjectOfA3mfBuildIsProtectedByNameAndItsLeakTraced) {
+  write_config({{"output_format", "same"}, {"watermark", {{"message_bits", 16}}}});
+  ASSERT_EQ(std::system((std::string(MESHMARK_EXE) + " sample chamfered_block " + (dir / "block.off").string() +
+                         " >/dev/null && " + MESHMARK_EXE + " sample flanged_cylinder " + (dir / "tube.off").string() +
+                         " >/dev/null").c_str()), 0);
+  mm::Mesh tube = mm::read_mesh((dir / "tube.off").string());
+  tube.points.col(0).array() += 100;  // beside the block on the build plate
+  const mm::Mesh block = mm::read_mesh((dir / "block.off").string());
+  {
+    std::ofstream out(dir / "build.3mf", std::ios::binary);
+    out << mm::three_mf_build_bytes({{"bracket", block}, {"tube", tube}}, "inch");
+  }
+  const std::string build = (dir / "build.3mf").string();
+  ASSERT_EQ(meshmark_with_config("submit protect --customer alpha --object bracket " + build), 0);
+  ASSERT_EQ(meshmark_with_config("submit protect --customer beta --object tube " + build), 0);
+  ASSERT_EQ(meshmark_with_config("submit protect --customer beta --object hinge " + build), 0);
+  ASSERT_NE(meshmark_with_config("run --until-empty --no-drops"), 0);  // the hinge job is discarded
+  auto st = store();
+  bool refused = false;
+  for (const auto& job : st->list_jobs())
+    if (job.state == mm::store::JobState::discarded) {
+      ASSERT_FALSE(job.errors.empty());
+      EXPECT_NE(job.errors.back().error.find("no 3MF build item holds an object named \"hinge\""), std::string::npos)
+          << job.errors.back().error;
+      refused = true;
+    }
+  EXPECT_TRUE(refused);
+  std::map<std::string, std::string> customer_of;
+  for (const auto& [c, object, vertices] : {std::tuple<std::string, std::string, int>{"alpha", "bracket", block.num_vertices()},
+                                            {"beta", "tube", tube.num_vertices()}}) {
+    const fs::path copy = output_of(*st, c, "build.3mf");
+    ASSERT_FALSE(copy.empty()) << c << log();
+    mm::ReadReport report;
+    const mm::Mesh m = mm::read_mesh(copy.string(), &report);
+    EXPECT_EQ(report.object_names, std::vector<std::string>{object});
+    EXPECT_EQ(report.unit, "inch");
+    EXPECT_GE(m.num_vertices(), vertices) << object;  // the object refined, not the build
+    EXPECT_LT(m.num_vertices(), 40 * vertices) << object;
+    customer_of[copy.filename().string()] = c;
+    ASSERT_EQ(meshmark_with_config("submit detect " + copy.string()), 0);
+  }
+  run_until_empty();
+  const auto dets = st->list_detections();
+  ASSERT_EQ(dets.size(), 2u);
   for (const auto& det : dets) {
     EXPECT_EQ(det.verdict, "attributed") << det.suspect_name << " " << det.details_json.substr(0, 400);
     ASSERT_TRUE(det.customer_id.has_value()) << det.suspect_name;

@@ -100,6 +100,40 @@ TEST(ThreeMf, EveryBuildItemIsReadWithItsTransforms) {
   EXPECT_EQ(m.faces[4], (std::vector<int>{4, 6, 5}));         // the second item's indices follow the first's
 }
 
+TEST(ThreeMf, ObjectsAreChosenByNameAndCopiesKeepTheName) {
+  Mesh a = test::quad_and_triangle(), b = a;
+  b.points.col(0).array() += 10;
+  const std::string bytes = three_mf_build_bytes({{"bracket", a}, {"lid", b}, {"bracket", a}}, "inch");
+  ReadReport all;
+  const Mesh whole = parse_mesh(bytes, "3mf", "build.3mf", &all);
+  EXPECT_EQ(all.objects, 3);
+  EXPECT_EQ(all.object_names, (std::vector<std::string>{"bracket", "lid", "bracket"}));
+  EXPECT_EQ(whole.num_vertices(), 3 * a.num_vertices());
+  ReadReport one;
+  const Mesh lid = parse_mesh(bytes, "3mf", "build.3mf", &one, ReadOptions{"lid"});
+  EXPECT_EQ(one.objects, 1);
+  EXPECT_EQ(one.unit, "inch");
+  ASSERT_EQ(lid.num_vertices(), b.num_vertices());
+  EXPECT_EQ(lid.points(0, 0), static_cast<double>(static_cast<float>(b.points(0, 0))));
+  ReadReport two;
+  EXPECT_EQ(parse_mesh(bytes, "3mf", "build.3mf", &two, ReadOptions{"bracket"}).num_vertices(), 2 * a.num_vertices());
+  EXPECT_EQ(two.objects, 2);
+  try {
+    parse_mesh(bytes, "3mf", "build.3mf", nullptr, ReadOptions{"hinge"});
+    FAIL() << "an unknown object was read";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.source(), "build.3mf");
+    EXPECT_NE(e.reason().find("no 3MF build item holds an object named \"hinge\" (objects: \"bracket\", \"lid\", \"bracket\")"),
+              std::string::npos) << e.reason();
+  }
+  const std::string stl = mesh_file_bytes(a, "a.stl");
+  EXPECT_THROW(parse_mesh(stl, "stl", "a.stl", nullptr, ReadOptions{"lid"}), InputError);
+  // A copy of one object is written as that object, named.
+  ReadReport copy;
+  parse_mesh(mesh_file_bytes(lid, "copy.3mf", WriteOptions{"inch", 0, "lid"}), "3mf", "copy.3mf", &copy);
+  EXPECT_EQ(copy.object_names, (std::vector<std::string>{"lid"}));
+}
+
 TEST(ThreeMf, DamagedOrEmptyPackagesAreRefusedByName) {
   const fs::path dir = test::scratch_dir("mm_3mf");
   const std::string good_path = (dir / "good.3mf").string();

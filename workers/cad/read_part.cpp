@@ -36,11 +36,13 @@ std::string part_format_list() {
 }
 
 Mesh parse_part(std::string_view bytes, const std::string& format, const std::string& source,
-                const TessellationOptions& options, PartReport* report) {
+                const TessellationOptions& options, PartReport* report, const ReadOptions& read) {
   PartReport local;
   PartReport& out = report ? *report : local;
   out = PartReport{};
-  if (!is_cad_format(format)) return parse_mesh(bytes, format, source, &out.read);
+  if (!is_cad_format(format)) return parse_mesh(bytes, format, source, &out.read, read);
+  if (!read.object.empty())
+    throw InputError(source, "a " + format + " file holds no named objects (asked for \"" + read.object + "\")");
   Tessellation t;
   Mesh mesh = tessellate_cad(bytes, format, source, options, &t);
   out.read.format = t.format;
@@ -51,15 +53,16 @@ Mesh parse_part(std::string_view bytes, const std::string& format, const std::st
   return mesh;
 }
 
-Mesh read_part(const std::string& path, const TessellationOptions& options, PartReport* report) {
+Mesh read_part(const std::string& path, const TessellationOptions& options, PartReport* report,
+               const ReadOptions& read) {
   const std::string format = lower_extension(path);
   if (!is_cad_format(format)) {
     PartReport local;
     PartReport& out = report ? *report : local;
     out = PartReport{};
-    return read_mesh(path, &out.read);
+    return read_mesh(path, &out.read, read);
   }
-  return parse_part(read_input_file(path), format, path, options, report);
+  return parse_part(read_input_file(path), format, path, options, report, read);
 }
 
 }  // namespace mm

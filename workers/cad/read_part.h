@@ -25,10 +25,12 @@ struct PartReport {
   std::optional<Tessellation> tessellation; // CAD parts: how the mesh was made
 };
 
-// The part in `bytes` as a mesh (format: one of part_formats()). InputError(source, reason).
+// The part in `bytes` as a mesh (format: one of part_formats()); read.object picks a 3MF part's
+// named objects. InputError(source, reason).
 Mesh parse_part(std::string_view bytes, const std::string& format, const std::string& source,
-                const TessellationOptions& options = {}, PartReport* report = nullptr);
+                const TessellationOptions& options = {}, PartReport* report = nullptr, const ReadOptions& read = {});
 // The same from a file, its format from its extension.
-Mesh read_part(const std::string& path, const TessellationOptions& options = {}, PartReport* report = nullptr);
+Mesh read_part(const std::string& path, const TessellationOptions& options = {}, PartReport* report = nullptr,
+               const ReadOptions& read = {});
 
 }  // namespace mm

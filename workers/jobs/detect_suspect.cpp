@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 #include <tuple>
 #include <nlohmann/json.hpp>
 
@@ -27,29 +28,35 @@ constexpr int kMaxTied = 12;
 
 const char* method_name(Method m) { return m == Method::Additive ? "additive" : "multiplicative"; }
 
-// What the asset's polyhedron row keeps of the original's shape (either may be absent: rows
-// written before footprints were kept have none).
+// What a polyhedron row keeps of the original's shape (either may be absent: rows written before
+// footprints were kept have none).
 struct AssetShape {
   std::optional<ShapeSignature> signature;
   std::optional<SurfaceFootprint> footprint;
 };
 
-AssetShape asset_shape(DetectionStore& st, std::int64_t asset_id, const std::vector<IssuedCopyRecord>& copies,
-                       std::vector<std::string>* warnings) {
-  AssetShape shape;
+// One shape per polyhedron the asset's copies were made from: a change of compression options
+// gives the same shape again, but each object of a 3MF build has its own.
+std::vector<AssetShape> asset_shapes(DetectionStore& st, std::int64_t asset_id,
+                                     const std::vector<IssuedCopyRecord>& copies, std::vector<std::string>* warnings) {
+  std::vector<AssetShape> shapes;
+  std::set<std::string> keys;
   for (const auto& c : copies) {
-    auto row = st.polyhedron(asset_id, copy_prepare_key(c.params_json));
+    const std::string key = copy_prepare_key(c.params_json);
+    if (!keys.insert(key).second) continue;
+    auto row = st.polyhedron(asset_id, key);
     if (!row) continue;
     try {
+      AssetShape shape;
       const json meta = json::parse(row->meta_json);
       shape.signature = ShapeSignature::from_json(meta.at("signature").dump());
       if (meta.contains("footprint")) shape.footprint = SurfaceFootprint::from_json(meta.at("footprint").dump());
+      shapes.push_back(std::move(shape));
     } catch (const std::exception& e) {
       warnings->push_back("asset " + std::to_string(asset_id) + ": no usable shape signature: " + e.what());
     }
-    return shape;
   }
-  return shape;
+  return shapes;
 }
 
 // Candidate assets in the order they are tried, and how they were found. Without a hash or
@@ -90,21 +97,26 @@ std::vector<std::int64_t> candidate_assets(DetectionStore& st, const Suspect& su
     std::vector<std::tuple<double, double, std::int64_t>> covering;  // -agreement, -exact, asset
     std::vector<std::pair<double, std::int64_t>> resembling;
     for (const auto& [asset_id, copies] : copies_of) {
-      const AssetShape shape = asset_shape(st, asset_id, copies, warnings);
-      if (shape.footprint) {
-        if (covered_fraction(*shape.footprint, probe) >= kCoveredNear) {
+      std::optional<std::pair<double, double>> held;  // the best (agreement, exact) of its shapes
+      std::optional<double> nearest;
+      for (const AssetShape& shape : asset_shapes(st, asset_id, copies, warnings)) {
+        if (shape.footprint && covered_fraction(*shape.footprint, probe) >= kCoveredNear) {
           const double exact = covered_fraction(*shape.footprint, probe, 0);
           if (exact >= kCoveredExact) {
-            const double a = region_agreement(*shape.footprint, suspect.mesh);
-            covering.push_back({-a, -exact, asset_id});
-            (*agreement)[asset_id] = a;
+            const std::pair<double, double> score{region_agreement(*shape.footprint, suspect.mesh), exact};
+            if (!held || score > *held) held = score;
           }
         }
+        if (shape.signature) {
+          const double d = signature_distance(sig, *shape.signature);
+          if (d < 0.5 && (!nearest || d < *nearest)) nearest = d;
+        }
       }
-      if (shape.signature) {
-        const double d = signature_distance(sig, *shape.signature);
-        if (d < 0.5) resembling.push_back({d, asset_id});
+      if (held) {
+        covering.push_back({-held->first, -held->second, asset_id});
+        (*agreement)[asset_id] = held->first;
       }
+      if (nearest) resembling.push_back({*nearest, asset_id});
     }
     std::sort(covering.begin(), covering.end());
     std::sort(resembling.begin(), resembling.end());

@@ -1,7 +1,7 @@
 // 3MF (3D Manufacturing Format) through lib3mf, Debian's lib3mf-dev (version 1.x, C interface).
-// Reading takes every build item: its object's meshes, through components (nested up to
-// kMaxComponentDepth), with the item's and the components' transforms applied, concatenated into
-// one mesh in build order. The model's unit is reported (ReadReport::unit) and coordinates stay
+// Reading takes every build item (or those whose object has a chosen name): its object's meshes,
+// through components (nested up to kMaxComponentDepth), with the item's and the components'
+// transforms applied, concatenated into one mesh in build order. The model's unit is reported (ReadReport::unit) and coordinates stay
 // in it. 3MF stores coordinates as 32-bit floats; writing rounds to them as binary STL does.
 #include <Model/COM/NMR_DLLInterfaces.h>
 
@@ -118,9 +118,22 @@ struct Collector {
   }
 };
 
+std::string object_name(NMR::PLib3MFModelObjectResource* object, const std::string& source) {
+  ULONG needed = 0;
+  if (NMR::lib3mf_object_getnameutf8(object, nullptr, 0, &needed) != LIB3MF_OK)
+    throw InputError(source, "3MF object name: " + last_error(object));
+  if (needed > 4096) throw InputError(source, "3MF object name longer than 4096 bytes");
+  std::string name(needed + 1, '\0');
+  if (NMR::lib3mf_object_getnameutf8(object, name.data(), needed + 1, &needed) != LIB3MF_OK)
+    throw InputError(source, "3MF object name: " + last_error(object));
+  name.resize(std::min<std::size_t>(needed, name.size()));
+  while (!name.empty() && name.back() == '\0') name.pop_back();
+  return name;
+}
+
 }  // namespace
 
-Mesh parse_3mf(std::string_view bytes, const std::string& source, ReadReport& report) {
+Mesh parse_3mf(std::string_view bytes, const std::string& source, ReadReport& report, const std::string& object) {
   report.format = "3mf";
   NMR::PLib3MFModel* model_raw = nullptr;
   if (NMR::lib3mf_createmodel(&model_raw) != LIB3MF_OK) throw InputError(source, "lib3mf could not create a model");
@@ -143,6 +156,7 @@ Mesh parse_3mf(std::string_view bytes, const std::string& source, ReadReport& re
     throw InputError(source, "3MF build: " + last_error(model_raw));
   Handle<NMR::PLib3MFModelBuildItemIterator> items(items_raw);
   int count = 0;
+  report.objects = 0;
   for (BOOL more = false; NMR::lib3mf_builditemiterator_movenext(items_raw, &more) == LIB3MF_OK && more;) {
     NMR::PLib3MFModelBuildItem* item_raw = nullptr;
     if (NMR::lib3mf_builditemiterator_getcurrent(items_raw, &item_raw) != LIB3MF_OK)
@@ -153,12 +167,20 @@ Mesh parse_3mf(std::string_view bytes, const std::string& source, ReadReport& re
     if (NMR::lib3mf_builditem_getobjectresource(item_raw, &object_raw) != LIB3MF_OK ||
         NMR::lib3mf_builditem_getobjecttransform(item_raw, &t) != LIB3MF_OK)
       throw InputError(source, "3MF build item " + std::to_string(count) + ": " + last_error(item_raw));
-    Handle<NMR::PLib3MFModelObjectResource> object(object_raw);
-    c.add(object_raw, affine(t), 0);
+    Handle<NMR::PLib3MFModelObjectResource> held(object_raw);
+    const std::string name = object_name(object_raw, source);
+    report.object_names.push_back(name);
     ++count;
+    if (!object.empty() && name != object) continue;
+    c.add(object_raw, affine(t), 0);
+    ++report.objects;
   }
   if (count == 0) throw InputError(source, "3MF model has no build items (nothing to make)");
-  report.objects = count;
+  if (report.objects == 0) {
+    std::string names;
+    for (const auto& n : report.object_names) names += (names.empty() ? "\"" : ", \"") + n + "\"";
+    throw InputError(source, "no 3MF build item holds an object named \"" + object + "\" (objects: " + names + ")");
+  }
   Mesh m;
   m.points.resize(static_cast<Eigen::Index>(c.points.size()), 3);
   for (std::size_t i = 0; i < c.points.size(); ++i) m.points.row(static_cast<Eigen::Index>(i)) = c.points[i].transpose();
@@ -166,36 +188,39 @@ Mesh parse_3mf(std::string_view bytes, const std::string& source, ReadReport& re
   return m;
 }
 
-std::string three_mf_bytes(const Mesh& m, const std::string& unit, const std::string& path) {
+std::string three_mf_bytes(const std::vector<std::pair<std::string, Mesh>>& objects, const std::string& unit,
+                           const std::string& path) {
   DWORD unit_code = 1;  // millimeter, 3MF's default
   if (!unit.empty()) {
     const auto* it = std::find(std::begin(kUnits), std::end(kUnits), unit);
     if (it == std::end(kUnits)) throw InputError(path, "unknown 3MF unit \"" + unit + "\"");
     unit_code = static_cast<DWORD>(it - std::begin(kUnits));
   }
-  std::vector<NMR::MODELMESHVERTEX> v(static_cast<std::size_t>(m.num_vertices()));
-  for (int i = 0; i < m.num_vertices(); ++i)
-    for (int k = 0; k < 3; ++k) v[i].m_fPosition[k] = static_cast<float>(m.points(i, k));
-  std::vector<NMR::MODELMESHTRIANGLE> t;
-  for (const auto& f : m.faces)
-    for (std::size_t k = 1; k + 1 < f.size(); ++k)  // fan triangulation keeps the orientation
-      t.push_back({{static_cast<DWORD>(f[0]), static_cast<DWORD>(f[k]), static_cast<DWORD>(f[k + 1])}});
-  if (t.size() > std::numeric_limits<DWORD>::max()) throw InputError(path, "too many triangles for 3MF");
-
   NMR::PLib3MFModel* model_raw = nullptr;
   if (NMR::lib3mf_createmodel(&model_raw) != LIB3MF_OK) throw InputError(path, "lib3mf could not create a model");
   Handle<NMR::PLib3MFModel> model(model_raw);
-  NMR::PLib3MFModelMeshObject* mesh_raw = nullptr;
-  NMR::PLib3MFModelBuildItem* item_raw = nullptr;
-  if (NMR::lib3mf_model_setunit(model_raw, unit_code) != LIB3MF_OK ||
-      NMR::lib3mf_model_addmeshobject(model_raw, &mesh_raw) != LIB3MF_OK)
-    throw InputError(path, "3MF: " + last_error(model_raw));
-  Handle<NMR::PLib3MFModelMeshObject> mesh(mesh_raw);
-  if (NMR::lib3mf_meshobject_setgeometry(mesh_raw, v.data(), static_cast<DWORD>(v.size()), t.data(),
-                                         static_cast<DWORD>(t.size())) != LIB3MF_OK ||
-      NMR::lib3mf_model_addbuilditem(model_raw, mesh_raw, nullptr, &item_raw) != LIB3MF_OK)
-    throw InputError(path, "3MF: " + last_error(mesh_raw));
-  Handle<NMR::PLib3MFModelBuildItem> item(item_raw);
+  if (NMR::lib3mf_model_setunit(model_raw, unit_code) != LIB3MF_OK) throw InputError(path, "3MF: " + last_error(model_raw));
+  for (const auto& [name, m] : objects) {
+    std::vector<NMR::MODELMESHVERTEX> v(static_cast<std::size_t>(m.num_vertices()));
+    for (int i = 0; i < m.num_vertices(); ++i)
+      for (int k = 0; k < 3; ++k) v[i].m_fPosition[k] = static_cast<float>(m.points(i, k));
+    std::vector<NMR::MODELMESHTRIANGLE> t;
+    for (const auto& f : m.faces)
+      for (std::size_t k = 1; k + 1 < f.size(); ++k)  // fan triangulation keeps the orientation
+        t.push_back({{static_cast<DWORD>(f[0]), static_cast<DWORD>(f[k]), static_cast<DWORD>(f[k + 1])}});
+    if (t.size() > std::numeric_limits<DWORD>::max()) throw InputError(path, "too many triangles for 3MF");
+    NMR::PLib3MFModelMeshObject* mesh_raw = nullptr;
+    NMR::PLib3MFModelBuildItem* item_raw = nullptr;
+    if (NMR::lib3mf_model_addmeshobject(model_raw, &mesh_raw) != LIB3MF_OK)
+      throw InputError(path, "3MF: " + last_error(model_raw));
+    Handle<NMR::PLib3MFModelMeshObject> mesh(mesh_raw);
+    if ((!name.empty() && NMR::lib3mf_object_setnameutf8(mesh_raw, name.c_str()) != LIB3MF_OK) ||
+        NMR::lib3mf_meshobject_setgeometry(mesh_raw, v.data(), static_cast<DWORD>(v.size()), t.data(),
+                                           static_cast<DWORD>(t.size())) != LIB3MF_OK ||
+        NMR::lib3mf_model_addbuilditem(model_raw, mesh_raw, nullptr, &item_raw) != LIB3MF_OK)
+      throw InputError(path, "3MF: " + last_error(mesh_raw));
+    Handle<NMR::PLib3MFModelBuildItem> item(item_raw);
+  }
   NMR::PLib3MFModelWriter* writer_raw = nullptr;
   if (NMR::lib3mf_model_querywriter(model_raw, "3mf", &writer_raw) != LIB3MF_OK)
     throw InputError(path, "lib3mf has no 3MF writer: " + last_error(model_raw));
@@ -207,6 +232,12 @@ std::string three_mf_bytes(const Mesh& m, const std::string& unit, const std::st
   if (NMR::lib3mf_writer_writetobuffer(writer_raw, reinterpret_cast<BYTE*>(out.data()), size) != LIB3MF_OK)
     throw InputError(path, "3MF: " + last_error(writer_raw));
   return out;
+}
+
+std::string three_mf_bytes(const Mesh& mesh, const std::string& unit, const std::string& path,
+                           const std::string& object_name) {
+  const std::vector<std::pair<std::string, Mesh>> one{{object_name, mesh}};
+  return three_mf_bytes(one, unit, path);
 }
 
 }  // namespace mm::formats

@@ -105,11 +105,13 @@ std::string mesh_format_list() {
 }
 
 Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::string& source,
-                ReadReport* report) {
+                ReadReport* report, const ReadOptions& options) {
   ReadReport local;
   ReadReport& r = report ? *report : local;
   r = ReadReport{};
   if (bytes.empty()) throw InputError(source, "empty file");
+  if (!options.object.empty() && format != "3mf")
+    throw InputError(source, "a " + format + " file holds no named objects (asked for \"" + options.object + "\")");
   Mesh mesh;
   if (format == "stl")
     mesh = formats::parse_stl(bytes, source, r);
@@ -120,7 +122,7 @@ Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::st
   else if (format == "ply")
     mesh = formats::parse_ply(bytes, source, r);
   else if (format == "3mf")
-    mesh = formats::parse_3mf(bytes, source, r);
+    mesh = formats::parse_3mf(bytes, source, r, options.object);
   else if (format == "gltf" || format == "glb")
     mesh = formats::parse_gltf(bytes, source, r, format == "glb");
   else
@@ -135,12 +137,12 @@ Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::st
   return mesh;
 }
 
-Mesh read_mesh(const std::string& path, ReadReport* report) {
+Mesh read_mesh(const std::string& path, ReadReport* report, const ReadOptions& options) {
   std::string ext = lower_extension(path);
   if (ext.empty() || !is_mesh_format(ext.substr(1)))
     throw InputError(path, "unknown mesh format \"" + ext + "\" (expected " + mesh_format_list() + ")");
   std::string bytes = read_input_file(path);
-  return parse_mesh(bytes, ext.substr(1), path, report);
+  return parse_mesh(bytes, ext.substr(1), path, report, options);
 }
 
 }  // namespace mm

@@ -12,6 +12,7 @@
 #pragma once
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "meshio/mesh.h"
@@ -22,6 +23,7 @@ struct ReadReport {
   std::string format;                // "stl-binary", "stl-ascii", "obj", "off", "off-binary", "ply-ascii", "ply-binary", "3mf", "glb", "gltf"
   std::string unit;                  // the file's length unit where it states one (3MF: "millimeter", ...; glTF: "meter"), else ""
   int objects = 1;                   // 3MF: build items read; glTF: triangle primitives read (all, concatenated)
+  std::vector<std::string> object_names;  // 3MF: every build item's object name, in build order ("" unnamed)
   bool draco = false;                // glTF: a primitive was Draco-compressed (KHR_draco_mesh_compression)
   int welded_vertices = 0;           // STL corners merged into an earlier vertex with equal coordinates
   int collapsed_faces = 0;           // faces that listed a vertex twice in a row; the repeat was removed
@@ -40,12 +42,17 @@ bool stores_triangles_only(const std::string& extension);
 // Reads by extension (.stl .obj .off .ply .3mf, case-insensitive). Throws InputError for missing,
 // empty, truncated or malformed files, NaN/Inf coordinates, absurd counts, indices out of range,
 // unknown formats, and files with no (non-degenerate) face.
-Mesh read_mesh(const std::string& path, ReadReport* report = nullptr);
+struct ReadOptions {
+  // 3MF: read only the build items whose object has this name (several items may share it); ""
+  // reads the whole build. Another format with a name is an InputError: it holds no named objects.
+  std::string object;
+};
+Mesh read_mesh(const std::string& path, ReadReport* report = nullptr, const ReadOptions& options = {});
 
 // The same from bytes already in memory (an upload, a blob); format is one of mesh_formats();
 // source names the data in error messages.
 Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::string& source,
-                ReadReport* report = nullptr);
+                ReadReport* report = nullptr, const ReadOptions& options = {});
 
 // A file's bytes with read_mesh's checks: InputError for a missing file, a folder, an empty file
 // or one over 2 GiB.
@@ -61,11 +68,16 @@ std::string read_input_file(const std::string& path);
 struct WriteOptions {
   std::string unit;    // 3MF: the length unit (ReadReport::unit's names); "" = millimeter
   int draco_bits = 0;  // GLB/glTF: 0 = plain float32; 8..30 = Draco-compressed, positions quantised to these bits
+  std::string object;  // 3MF: the object's name ("" = unnamed)
 };
 void write_mesh(const Mesh& mesh, const std::string& path, const WriteOptions& options = {});
 // The bytes write_mesh writes to `path` (format from its extension), without writing them:
 // InputError for an unknown format or a mesh that cannot be written.
 std::string mesh_file_bytes(const Mesh& mesh, const std::string& path, const WriteOptions& options = {});
+
+// A 3MF package of several meshes, each its own object (named where the name is not empty) and
+// build item, in order: a build of several parts. InputError for an unknown unit.
+std::string three_mf_build_bytes(const std::vector<std::pair<std::string, Mesh>>& objects, const std::string& unit = "");
 
 // A double as the text writers print it: the shortest text that reads back to the same value
 // (std::to_chars). Cache keys and records name their parameters with it too.

@@ -154,7 +154,7 @@ std::string mesh_file_bytes(const Mesh& mesh, const std::string& path, const Wri
          : ext == ".obj" ? obj_text(mesh)
          : ext == ".off" ? off_text(mesh)
          : ext == ".ply" ? ply_text(mesh)
-         : ext == ".3mf" ? formats::three_mf_bytes(mesh, options.unit, path)
+         : ext == ".3mf" ? formats::three_mf_bytes(mesh, options.unit, path, options.object)
                          : formats::gltf_bytes(mesh, path, ext == ".glb", options.draco_bits);
 }
 
@@ -166,6 +166,10 @@ std::string shortest_text(double d) {
   std::string s;
   append_double(s, d);
   return s;
+}
+
+std::string three_mf_build_bytes(const std::vector<std::pair<std::string, Mesh>>& objects, const std::string& unit) {
+  return formats::three_mf_bytes(objects, unit, "3MF build");
 }
 
 }  // namespace mm
