@@ -1,18 +1,8 @@
 #include "cad/read_part.h"
 
 #include <algorithm>
-#include <cctype>
 
 namespace mm {
-
-std::string lower_extension(const std::string& path) {
-  const auto slash = path.find_last_of('/');
-  const auto dot = path.find_last_of('.');
-  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
-  std::string ext = path.substr(dot + 1);
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return ext;
-}
 
 const std::vector<std::string>& part_formats() {
   static const std::vector<std::string> formats = [] {

@@ -11,9 +11,6 @@
 
 namespace mm {
 
-// A path's extension in lower case without the dot ("" when it has none): the format it names.
-std::string lower_extension(const std::string& path);
-
 // Every format parse_part reads: mesh_formats(), then step, stp, iges, igs.
 const std::vector<std::string>& part_formats();
 bool is_part_format(const std::string& extension);

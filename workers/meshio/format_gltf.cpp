@@ -278,20 +278,22 @@ std::string gltf_bytes(const Mesh& m, const std::string& path, bool binary, int 
     const auto* b = static_cast<const unsigned char*>(p);
     data.insert(data.end(), b, b + n);
   };
+  // A Draco copy's buffer is the Draco mesh alone: the plain arrays are only counted for it.
+  const bool plain = draco_bits == 0;
   Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max()), hi = -lo;
   for (int i = 0; i < m.num_vertices(); ++i) {
     const Eigen::Vector3f f = m.points.row(i).transpose().cast<float>();
     lo = lo.cwiseMin(f);
     hi = hi.cwiseMax(f);
-    put(f.data(), 12);
+    if (plain) put(f.data(), 12);
   }
-  const std::size_t position_bytes = data.size();
+  const std::size_t position_bytes = 12 * static_cast<std::size_t>(m.num_vertices());
   std::size_t triangles = 0;
   for (const auto& f : m.faces)
     for (std::size_t k = 1; k + 1 < f.size(); ++k) {  // fan triangulation keeps the orientation
       const std::uint32_t t[3] = {static_cast<std::uint32_t>(f[0]), static_cast<std::uint32_t>(f[k]),
                                   static_cast<std::uint32_t>(f[k + 1])};
-      put(t, 12);
+      if (plain) put(t, 12);
       ++triangles;
     }
   tinygltf::Buffer buffer;

@@ -17,12 +17,6 @@ namespace {
 // Larger inputs are not CAD parts we can process; refusing early keeps memory bounded.
 constexpr std::uintmax_t kMaxFileBytes = std::uintmax_t(2) << 30;
 
-std::string lower_extension(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ext;
-}
-
 
 // Removes a vertex listed twice in a row (cyclically); drops faces that still do not have at
 // least 3 distinct vertices. Counted in the report: never silent.
@@ -138,11 +132,21 @@ Mesh parse_mesh(std::string_view bytes, const std::string& format, const std::st
 }
 
 Mesh read_mesh(const std::string& path, ReadReport* report, const ReadOptions& options) {
-  std::string ext = lower_extension(path);
-  if (ext.empty() || !is_mesh_format(ext.substr(1)))
-    throw InputError(path, "unknown mesh format \"" + ext + "\" (expected " + mesh_format_list() + ")");
+  const std::string ext = lower_extension(path);
+  if (!is_mesh_format(ext))
+    throw InputError(path, "unknown mesh format \"" + (ext.empty() ? "" : "." + ext) + "\" (expected " +
+                               mesh_format_list() + ")");
   std::string bytes = read_input_file(path);
-  return parse_mesh(bytes, ext.substr(1), path, report, options);
+  return parse_mesh(bytes, ext, path, report, options);
+}
+
+std::string lower_extension(const std::string& path) {
+  const auto slash = path.find_last_of('/');
+  const auto dot = path.find_last_of('.');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
+  std::string ext = path.substr(dot + 1);
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
 }
 
 }  // namespace mm

@@ -31,6 +31,9 @@ struct ReadReport {
   int unreferenced_vertices = 0;     // kept (vertex order matters), but no face uses them
 };
 
+// A path's extension in lower case without the dot ("" when it has none): the format it names.
+std::string lower_extension(const std::string& path);
+
 // The formats read_mesh reads and write_mesh writes, as lower-case extensions without the dot.
 const std::vector<std::string>& mesh_formats();
 bool is_mesh_format(const std::string& extension);
