@@ -72,12 +72,8 @@ if [ ! -f "$S/ready" ]; then
   touch "$S/ready"
 fi
 
-bench_new_run "$W"
-/usr/bin/time -f "%e %U %M" -o "$R/time" bash -c "cd '$R' && '$MM' run --until-empty --no-drops --config meshmarkd.json" \
-  >"$R/run.txt" 2>"$R/run.log" || true
-"$MM" detections --home "$R/home" --json --limit 100000 >"$R/detections.json"
+bench_detect_run "$W"
 "$MM" assets --home "$R/home" --json --limit 100000 >"$R/assets.json"
-read -r wall user rss <"$R/time"
 echo "stored assets: $(python3 -c "import json,sys; print(len(json.load(open(sys.argv[1]))))" "$R/assets.json")"
 echo "detect jobs: wall ${wall} s, CPU user ${user} s, peak RSS $((rss / 1024)) MB, $WORKERS workers"
 python3 - "$R" "$W/parts" <<'PY'

@@ -111,12 +111,8 @@ if [ ! -f "$W/setup/ready" ]; then
   touch "$S/ready"
 fi
 
-bench_new_run "$W"
-/usr/bin/time -f "%e %U %M" -o "$R/time" bash -c "cd '$R' && '$MM' run --until-empty --no-drops --config meshmarkd.json" \
-  >"$R/run.txt" 2>"$R/run.log" || true
-"$MM" detections --home "$R/home" --json --limit 100000 >"$R/detections.json"
+bench_detect_run "$W"
 "$MM" jobs list --home "$R/home" --kind detect --json --limit 100000 >"$R/jobs.json"
-read -r wall user rss <"$R/time"
 echo "run $R: $(cat "$R/run.txt")"
 echo "detect jobs: wall ${wall} s, CPU user ${user} s, peak RSS $((rss / 1024)) MB, $WORKERS workers"
 python3 - "$R" "$W/setup/home" "$MM" "$WORKERS" "$here" "${TOLERANCE:-}" <<'PY'

@@ -33,3 +33,13 @@ bench_new_run() {
   config "$R"
   (cd "$R" && "$MM" submit detect --config meshmarkd.json "$1/setup/suspects"/* >/dev/null)
 }
+
+# bench_detect_run WORK_DIR: a new run (bench_new_run) whose queue `meshmark run` works off under
+# /usr/bin/time; sets R, wall and user (seconds) and rss (kB), and writes R/detections.json.
+bench_detect_run() {
+  bench_new_run "$1"
+  /usr/bin/time -f "%e %U %M" -o "$R/time" bash -c "cd '$R' && '$MM' run --until-empty --no-drops --config meshmarkd.json" \
+    >"$R/run.txt" 2>"$R/run.log" || true
+  "$MM" detections --home "$R/home" --json --limit 100000 >"$R/detections.json"
+  read -r wall user rss <"$R/time"
+}
