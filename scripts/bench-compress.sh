@@ -7,7 +7,9 @@
 # command.
 # Prints a table per mesh and the median size ratio Draco / meshmark, then a table of speed and
 # memory per mesh (the protect jobs' fit path, decompression to level 3); writes fandisk pictures
-# to docs/images/ and the printed tables to docs/results/compress.md.
+# to docs/images/ and the printed tables to docs/results/compress.md (with another TOLERANCE than
+# 0.005: docs/results/compress-tolerance-<TOLERANCE>[-<MAX_VERTICES>].md, no pictures). A part the fit cannot
+# bring within the tolerance is a "refused" row with meshmark's reason.
 #
 # Usage: scripts/bench-compress.sh [OUT_DIR]     (env: MESHMARK=path/to/meshmark, MESHES=dir,
 #        MAX_VERTICES=1000, TOLERANCE=0.005, BITS (default: chosen by compress), LIST="fandisk.off ...",
@@ -17,7 +19,12 @@
 set -euo pipefail
 BENCH_ENV="MESHMARK MESHES MAX_VERTICES TOLERANCE BITS LIST SEEDS SPEED_RUNS"
 . "$(dirname "$0")/bench-results.sh"
-bench_results compress "Compression: size against Draco at equal Hausdorff, speed and memory" "$@"
+if [ -n "${TOLERANCE:-}" ] && [ "$TOLERANCE" != 0.005 ]; then
+  bench_results "compress-tolerance-$TOLERANCE${MAX_VERTICES:+-$MAX_VERTICES}" \
+    "Compression at tolerance $TOLERANCE${MAX_VERTICES:+, up to $MAX_VERTICES control vertices}: size against Draco at equal Hausdorff, speed and memory" "$@"
+else
+  bench_results compress "Compression: size against Draco at equal Hausdorff, speed and memory" "$@"
+fi
 cd "$(dirname "$0")/.."
 MESHMARK=${MESHMARK:-build/daemon/meshmark}
 MESHES=${MESHES:-../shared/data/meshes}
@@ -109,14 +116,19 @@ stream_path() {
 printf '%-14s %4s %7s %8s %7s %9s %9s %7s %7s %7s %7s | %5s %9s %9s | %7s\n' mesh seed in_vert ctrl_v bytes hausdorff rms \
   fit_s check_s bits_s cpu_s qp draco_B draco_H ratio
 medians=()
+refused=" "  # parts refused at this tolerance (the speed table skips them)
 for seed in $SEEDS; do
 ratios=()
 for name in $LIST; do
   in="$MESHES/$name"
   base="${name%.*}"
   mmc=$(stream_path "$base" "$seed")
-  summary=$(cpu_seconds "$OUT/$base.cpu" "$MESHMARK" compress "$in" "$mmc" --tolerance "$TOLERANCE" \
-            --max-vertices "$MAX_VERTICES" ${BITS:+--bits "$BITS"} --seed "$seed" --json)
+  if ! summary=$(cpu_seconds "$OUT/$base.cpu" "$MESHMARK" compress "$in" "$mmc" --tolerance "$TOLERANCE" \
+                 --max-vertices "$MAX_VERTICES" ${BITS:+--bits "$BITS"} --seed "$seed" --json 2>"$OUT/$base.err"); then
+    printf '%-14s %4s refused after %s s CPU: %s\n' "$base" "$seed" "$(cat "$OUT/$base.cpu")" "$(tail -1 "$OUT/$base.err")"
+    refused="$refused$base "
+    continue
+  fi
   # cpu_s: the whole command's CPU time, all threads (the crease angles are fitted at once).
   cpu=$(cat "$OUT/$base.cpu")
   bytes=$(stat -c %s "$mmc")
@@ -201,8 +213,9 @@ protect_job_cpu() {
   mkdir -p "$home/drop" "$home/out"
   "$MESHMARK" init --home "$home/home" >/dev/null
   "$MESHMARK" customer add bench --home "$home/home" >/dev/null
-  printf '{"home": "%s/home", "drop_dir": "%s/drop", "output_dir": "%s/out", "workers": 1, "output_format": "stl", "log_file": "%s/log", "compression": {"tolerance": %s, "max_vertices": %s}}\n' \
-    "$home" "$home" "$home" "$home" "$TOLERANCE" "$MAX_VERTICES" > "$home/meshmarkd.json"
+  # The watermark's budget must hold the polyhedron (it is 4000 unless raised).
+  printf '{"home": "%s/home", "drop_dir": "%s/drop", "output_dir": "%s/out", "workers": 1, "output_format": "stl", "log_file": "%s/log", "compression": {"tolerance": %s, "max_vertices": %s}, "watermark": {"max_vertices": %s}}\n' \
+    "$home" "$home" "$home" "$home" "$TOLERANCE" "$MAX_VERTICES" "$((MAX_VERTICES > 4000 ? MAX_VERTICES : 4000))" > "$home/meshmarkd.json"
   "$MESHMARK" submit protect --config "$home/meshmarkd.json" --customer bench "$1" >/dev/null
   cpu_seconds "$home/cpu" "$MESHMARK" run --config "$home/meshmarkd.json" --until-empty --no-drops >/dev/null
   cat "$home/cpu"
@@ -222,29 +235,48 @@ for name in $LIST; do parts+=("$MESHES/$name"); done
 for in in "${parts[@]}"; do
   name=$(basename "$in")
   base="${name%.*}"
+  if [[ "$refused" == *" $base "* ]]; then
+    printf '%-14s refused at this tolerance (above)\n' "$base"
+    continue
+  fi
   mmc=$(stream_path "$base" "$first_seed")
   # No stream of the default command for the split part: its protect-path stream is decoded.
   [ -f "$mmc" ] || mmc="$OUT/$base.protect-path.mmc"
   # The same command SPEED_RUNS times (the same stream each time): a shared or virtual machine's
   # timings spread by 20-30 % between runs, and the least is the one least disturbed.
-  command=""
+  command="" path_refused=""
   for ((run = 1; run <= SPEED_RUNS; run++)); do
-    json=$(cpu_seconds "$OUT/$base.protect-path.cpu" "$MESHMARK" compress "$in" "$OUT/$base.protect-path.mmc" \
-           --tolerance "$TOLERANCE" --max-vertices "$MAX_VERTICES" --angle 35 --no-coarsen --threads 1 --seed 1 --json)
+    if ! json=$(cpu_seconds "$OUT/$base.protect-path.cpu" "$MESHMARK" compress "$in" "$OUT/$base.protect-path.mmc" \
+                --tolerance "$TOLERANCE" --max-vertices "$MAX_VERTICES" --angle 35 --no-coarsen --threads 1 --seed 1 \
+                --json 2>"$OUT/$base.err"); then
+      path_refused=$(tail -1 "$OUT/$base.err")
+      break
+    fi
     this=$(cat "$OUT/$base.protect-path.cpu")
     if less_than "$this" "$command"; then
       command=$this
       fast=$json
     fi
   done
+  if [ -n "$path_refused" ]; then
+    printf '%-14s protect path refused after %s s CPU: %s\n' "$base" "$(cat "$OUT/$base.protect-path.cpu")" "$path_refused"
+    continue
+  fi
   echo "$command" > "$OUT/$base.protect-path.cpu"
-  fast_cpu=""
+  fast_cpu="" fast_refused=""
   for ((run = 1; run <= SPEED_RUNS; run++)); do
-    cpu_seconds "$OUT/$base.fast.cpu" "$MESHMARK" compress "$in" "$OUT/$base.fast.mmc" \
-      --tolerance "$TOLERANCE" --max-vertices "$MAX_VERTICES" --fast --threads 1 --json >/dev/null
+    if ! cpu_seconds "$OUT/$base.fast.cpu" "$MESHMARK" compress "$in" "$OUT/$base.fast.mmc" \
+         --tolerance "$TOLERANCE" --max-vertices "$MAX_VERTICES" --fast --threads 1 --json >/dev/null 2>"$OUT/$base.err"; then
+      fast_refused=$(tail -1 "$OUT/$base.err")
+      break
+    fi
     this=$(cat "$OUT/$base.fast.cpu")
     if less_than "$this" "$fast_cpu"; then fast_cpu=$this; fi
   done
+  if [ -n "$fast_refused" ]; then
+    printf '%-14s --fast refused after %s s CPU: %s\n' "$base" "$(cat "$OUT/$base.fast.cpu")" "$fast_refused"
+    continue
+  fi
   fast_bytes=$(stat -c %s "$OUT/$base.fast.mmc")
   fast_h=$("$MESHMARK" compare "$in" "$OUT/$base.fast.mmc" --json | jq -r '.hausdorff')
   fast_ratio=-
@@ -290,7 +322,7 @@ fi
 [ -z "$large" ] || echo "$large_line"
 
 # Pictures of fandisk: original, control polyhedron with creases, decoded surface.
-if [ "$SEEDS" = 1 ] && [ -f "$OUT/fandisk.mmc" ] && "$MESHMARK" render --help >/dev/null 2>&1; then
+if [ "$SEEDS" = 1 ] && [ "$TOLERANCE" = 0.005 ] && [ -f "$OUT/fandisk.mmc" ] && "$MESHMARK" render --help >/dev/null 2>&1; then
   "$MESHMARK" render "$MESHES/fandisk.off" "$OUT/fandisk-original.png" >/dev/null
   "$MESHMARK" render "$OUT/fandisk.mmc" "$OUT/fandisk-control.png" --control >/dev/null
   "$MESHMARK" render "$OUT/fandisk.mmc" "$OUT/fandisk-decoded.png" >/dev/null
