@@ -13,13 +13,18 @@ namespace mm {
 
 namespace {
 
+// Cells are stored x fastest, then y, then z.
+long flat_index(const SurfaceFootprint& f, int x, int y, int z) {
+  return (static_cast<long>(z) * f.dims[1] + y) * f.dims[0] + x;
+}
+
 long cell_index(const SurfaceFootprint& f, const Eigen::Vector3d& p, int* c) {
   for (int a = 0; a < 3; ++a) {
     const double t = std::floor((p[a] - f.lo[a]) / f.cell);
     if (!(t >= 0 && t < f.dims[a])) return -1;
     c[a] = static_cast<int>(t);
   }
-  return (static_cast<long>(c[2]) * f.dims[1] + c[1]) * f.dims[0] + c[0];
+  return flat_index(f, c[0], c[1], c[2]);
 }
 
 bool near_occupied(const SurfaceFootprint& f, const Eigen::Vector3d& p, int reach) {
@@ -34,7 +39,7 @@ bool near_occupied(const SurfaceFootprint& f, const Eigen::Vector3d& p, int reac
       for (int dx = -reach; dx <= reach; ++dx) {
         const int x = c[0] + dx, y = c[1] + dy, z = c[2] + dz;
         if (x < 0 || y < 0 || z < 0 || x >= f.dims[0] || y >= f.dims[1] || z >= f.dims[2]) continue;
-        if (f.occupied[static_cast<size_t>((static_cast<long>(z) * f.dims[1] + y) * f.dims[0] + x)]) return true;
+        if (f.occupied[static_cast<size_t>(flat_index(f, x, y, z))]) return true;
       }
   return false;
 }
@@ -144,7 +149,7 @@ double region_agreement(const SurfaceFootprint& footprint, const Mesh& suspect) 
   for (int z = lo[2]; z <= hi[2]; ++z)
     for (int y = lo[1]; y <= hi[1]; ++y)
       for (int x = lo[0]; x <= hi[0]; ++x) {
-        const size_t i = static_cast<size_t>((static_cast<long>(z) * f.dims[1] + y) * f.dims[0] + x);
+        const size_t i = static_cast<size_t>(flat_index(f, x, y, z));
         both += mine[i] && f.occupied[i];
         either += mine[i] || f.occupied[i];
       }

@@ -112,10 +112,7 @@ std::vector<std::int64_t> candidate_assets(DetectionStore& st, const Suspect& su
           if (d < 0.5 && (!nearest || d < *nearest)) nearest = d;
         }
       }
-      if (held) {
-        covering.push_back({-held->first, -held->second, asset_id});
-        (*agreement)[asset_id] = held->first;
-      }
+      if (held) covering.push_back({-held->first, -held->second, asset_id});
       if (nearest) resembling.push_back({*nearest, asset_id});
     }
     std::sort(covering.begin(), covering.end());
@@ -126,7 +123,10 @@ std::vector<std::int64_t> candidate_assets(DetectionStore& st, const Suspect& su
       const double best = -std::get<0>(covering.front());
       for (const auto& [neg_a, neg_exact, id] : covering) {
         const int n = static_cast<int>(candidates.size());
-        if (n < max_candidates || (-neg_a >= best - kAgreementTie && n < kMaxTied)) add(id);
+        if (n < max_candidates || (-neg_a >= best - kAgreementTie && n < kMaxTied)) {
+          add(id);
+          (*agreement)[id] = -neg_a;
+        }
       }
       *match = "surface footprint";
     } else {
@@ -134,8 +134,6 @@ std::vector<std::int64_t> candidate_assets(DetectionStore& st, const Suspect& su
         if (static_cast<int>(candidates.size()) < max_candidates) add(r.second);
       if (!candidates.empty()) *match = "shape signature";
     }
-    for (auto it = agreement->begin(); it != agreement->end();)
-      it = std::find(candidates.begin(), candidates.end(), it->first) == candidates.end() ? agreement->erase(it) : std::next(it);
   }
   return candidates;
 }
