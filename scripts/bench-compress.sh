@@ -322,7 +322,7 @@ fi
 [ -z "$large" ] || echo "$large_line"
 
 # Pictures of fandisk: original, control polyhedron with creases, decoded surface.
-if [ "$SEEDS" = 1 ] && [ "$TOLERANCE" = 0.005 ] && [ -f "$OUT/fandisk.mmc" ] && "$MESHMARK" render --help >/dev/null 2>&1; then
+if bench_writes_docs && [ "$SEEDS" = 1 ] && [ "$TOLERANCE" = 0.005 ] && [ -f "$OUT/fandisk.mmc" ] && "$MESHMARK" render --help >/dev/null 2>&1; then
   "$MESHMARK" render "$MESHES/fandisk.off" "$OUT/fandisk-original.png" >/dev/null
   "$MESHMARK" render "$OUT/fandisk.mmc" "$OUT/fandisk-control.png" --control >/dev/null
   "$MESHMARK" render "$OUT/fandisk.mmc" "$OUT/fandisk-decoded.png" >/dev/null

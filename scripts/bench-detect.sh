@@ -115,10 +115,11 @@ bench_detect_run "$W"
 "$MM" jobs list --home "$R/home" --kind detect --json --limit 100000 >"$R/jobs.json"
 echo "run $R: $(cat "$R/run.txt")"
 echo "detect jobs: wall ${wall} s, CPU user ${user} s, peak RSS $((rss / 1024)) MB, $WORKERS workers"
-python3 - "$R" "$W/setup/home" "$MM" "$WORKERS" "$here" "${TOLERANCE:-}" <<'PY'
+plots=; [ -n "${TOLERANCE:-}" ] || ! bench_writes_docs || plots=1
+python3 - "$R" "$W/setup/home" "$MM" "$WORKERS" "$here" "$plots" <<'PY'
 import json, os, subprocess, sys, collections
 run, home, mm, workers = sys.argv[1:5]
-plots = not sys.argv[6]
+plots = bool(sys.argv[6])
 dets = json.load(open(run + "/detections.json"))
 customers = {c["id"]: c["name"] for c in json.loads(subprocess.check_output([mm, "customer", "list", "--home", home, "--json"]))}
 rows = []

@@ -2,6 +2,9 @@
 # with its standard output also kept and, when it succeeds, rewrites docs/results/NAME.md with the
 # title, the command (and the environment variables in BENCH_ENV that are set), the commit, the
 # machine's cores and CPU, and the output. A failed run leaves the previous results file in place.
+# MESHMARK_BENCH_INNER=1 set by hand runs the script alone: nothing under docs/ is rewritten, and
+# pictures the script draws are written only where bench_writes_docs says so.
+bench_writes_docs() { [ -n "${MESHMARK_BENCH_WRITE:-}" ]; }
 bench_results() {
   [ -n "${MESHMARK_BENCH_INNER:-}" ] && return 0
   local name=$1 title=$2
@@ -15,7 +18,7 @@ bench_results() {
   done
   [ $# -eq 0 ] || command="$command$(printf ' %q' "$@")"
   set +e
-  MESHMARK_BENCH_INNER=1 "$0" "$@" | tee "$log"
+  MESHMARK_BENCH_INNER=1 MESHMARK_BENCH_WRITE=1 "$0" "$@" | tee "$log"
   status=${PIPESTATUS[0]}
   set -e
   if [ "$status" -eq 0 ]; then

@@ -25,10 +25,11 @@ struct SurfaceOffsets {
   bool empty() const { return offsets.size() == 0; }
 };
 
-// Suspect vertices (evenly strided, at most max_samples) mapped by to_control_frame and paired
+// Suspect vertices (evenly strided, at most max_samples: the test's power grows with the root of
+// the vertices a noisy copy keeps, and its cost barely) mapped by to_control_frame and paired
 // with their closest points on the context's fit surface; those farther than max_distance x the
 // diagonal are left out (where the suspect is not the part).
 SurfaceOffsets surface_offsets(const ResyncContext& context, const Mesh& suspect, const Similarity& to_control_frame,
-                               int max_samples = 8000, double max_distance = 0.02);
+                               int max_samples = 100000, double max_distance = 0.02);
 
 }  // namespace mm

@@ -21,7 +21,7 @@ namespace mm {
 
 // Only the lowest-frequency coefficients are fitted (at most this many; the rest get u_j = 0):
 // attacks that change connectivity keep little of the highest frequencies, and the fit's cost
-// grows with the product of samples and coefficients.
+// grows with the square of the coefficients (not with the samples: every suspect vertex is used).
 constexpr int kSurfaceEvidenceCoefficients = 1200;
 
 // rows: m x n (n = basis.num_vertices()), normals m x 3, offsets m, all in the frame of
