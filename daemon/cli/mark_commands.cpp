@@ -336,17 +336,15 @@ void add_extract_command(CLI::App& app) {
     bool aligned = false;
     const double mark = mark_rms(ctl, rec.message_bits, rec.params);
     const Resynchronized rs = resync(ctx, ctl, suspect, opts, mark, aligned);
-    const SurfaceOffsets surface =
-        rs.method == "surface-fit" ? surface_offsets(ctx, suspect, rs.to_control_frame) : SurfaceOffsets{};
+    const std::vector<SurfaceOffsets> surfaces =
+        rs.method == "surface-fit" ? surface_readings(ctx, suspect, rs.to_control_frame) : std::vector<SurfaceOffsets>{};
 
     const std::vector<bool> expected = message_to_bits(rec.message);
     // Scored as the daemon scores a copy (jobs::copy_statistics): the sign count with its
     // calibrated null, the matched score, the verdict on the smaller p of the two, doubled.
-    const jobs::CopyStatistics st = jobs::copy_statistics(
-        ctl.basis,
-        jobs::suspect_evidence(ctl.basis, ctl.normalized.points, rs.points, &surface, rec.message_bits,
-                               rec.params),
-        key, rec.nonce, rec.params, expected);
+    const jobs::SuspectEvidence evidence = jobs::suspect_evidence(ctl.basis, ctl.normalized.points, rs.points,
+                                                                  &surfaces, rec.message_bits, rec.params);
+    const jobs::CopyStatistics st = jobs::copy_statistics(ctl.basis, evidence, key, rec.nonce, rec.params, expected);
     const Extraction& ex = st.sign;
     const NullCalibration& cal = st.calibration;
     const jobs::MarkP& sign_p = st.sign_p;
@@ -390,6 +388,7 @@ void add_extract_command(CLI::App& app) {
         {"sign_neg_log10_p", sign_p.neg_log10_p},
         {"matched_statistic", matched.statistic},
         {"matched_neg_log10_p", matched.neg_log10_p},
+        {"matched_reading", evidence.readings[static_cast<std::size_t>(st.reading)]},
         {"verdict_p", verdict_p},
         {"verdict_neg_log10_p", mark_p.neg_log10_p},
         {"bit_error_rate", static_cast<double>(wrong_bits) / static_cast<double>(expected.size())},

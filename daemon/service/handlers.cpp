@@ -543,6 +543,7 @@ DetectionRecord detect_record(store::Store& st, const jobs::Suspect& suspect, co
                               {"sign_neg_log10_p", s.sign_neg_log10_p},
                               {"matched_statistic", s.matched_statistic},
                               {"matched_neg_log10_p", s.matched_neg_log10_p},
+                              {"matched_reading", s.matched_reading},
                               {"null_mean", s.null_mean},
                               {"null_sd", s.null_sd},
                               {"payload_matches", s.payload_matches},

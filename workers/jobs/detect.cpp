@@ -106,27 +106,47 @@ CopyStatistics copy_statistics(const SpectralBasis& basis, const SuspectEvidence
   s.sign = extract(basis, evidence.spectral, bits, key, nonce, params, &expected);
   s.calibration = calibrate_null(s.sign.signs, bits, s.sign.correlation, &expected, evidence.nulls);
   s.sign_p = verdict_p(s.sign, s.calibration);
-  s.matched = matched_score(evidence.matched, key, nonce, expected, usable_coefficients(basis));
+  for (std::size_t r = 0; r < evidence.matched.size(); ++r) {
+    MatchedScore m = matched_score(evidence.matched[r], key, nonce, expected, usable_coefficients(basis));
+    if (r == 0 || m.statistic > s.matched.statistic) {
+      s.matched = std::move(m);
+      s.reading = static_cast<int>(r);
+    }
+  }
+  if (evidence.matched.size() > 1) {
+    const double readings = static_cast<double>(evidence.matched.size());
+    s.matched.p = std::min(1.0, s.matched.p * readings);
+    s.matched.neg_log10_p = std::max(0.0, s.matched.neg_log10_p - std::log10(readings));
+  }
   s.p = combined_p(s.sign_p, s.matched);
   s.message = s.matched.neg_log10_p > s.sign_p.neg_log10_p ? s.matched.message : s.sign.message;
   return s;
 }
 
 SuspectEvidence suspect_evidence(const SpectralBasis& basis, const Points& original, const Points& registered,
-                                 const SurfaceOffsets* surface, int message_bits, const EmbedParams& params) {
+                                 const std::vector<SurfaceOffsets>* surfaces, int message_bits,
+                                 const EmbedParams& params) {
   SuspectEvidence e;
   e.spectral = spectral_displacement(basis, original, registered);
-  e.matched = surface && !surface->empty()
-                  ? surface_evidence(basis, original, surface->rows, surface->normals, surface->offsets,
-                                     surface->nuisance, message_bits, params)
-                  : coefficient_evidence(basis, original, registered, message_bits, params);
+  for (std::size_t r = 0; surfaces && r < surfaces->size(); ++r) {
+    const SurfaceOffsets& s = (*surfaces)[r];
+    if (s.empty()) continue;
+    e.matched.push_back(
+        surface_evidence(basis, original, s.rows, s.normals, s.offsets, s.nuisance, message_bits, params));
+    e.readings.push_back(r < std::size(kSurfaceReadings) ? kSurfaceReadings[r] : "surface " + std::to_string(r));
+  }
+  if (e.matched.empty()) {
+    e.matched.push_back(coefficient_evidence(basis, original, registered, message_bits, params));
+    e.readings.push_back("");
+  }
   // The sign count runs over the sequence's r * l entries, as the matched evidence does.
-  e.nulls = make_null_sequences(e.matched.u.size());
+  e.nulls = make_null_sequences(e.matched.front().u.size());
   return e;
 }
 
 std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,
-                                    const std::vector<CopyCandidate>& copies, const SurfaceOffsets* surface) {
+                                    const std::vector<CopyCandidate>& copies,
+                                    const std::vector<SurfaceOffsets>* surfaces) {
   std::vector<CopyScore> scores;
   // The evidence depends on the suspect and the copies' settings, not on keys.
   SuspectEvidence evidence;
@@ -136,7 +156,7 @@ std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& re
         evidence_for->params.method != c.settings.params.method ||
         evidence_for->params.strength != c.settings.params.strength ||
         evidence_for->params.threshold != c.settings.params.threshold) {
-      evidence = suspect_evidence(asset.basis, asset.control.points, registered, surface, c.settings.message_bits,
+      evidence = suspect_evidence(asset.basis, asset.control.points, registered, surfaces, c.settings.message_bits,
                                   c.settings.params);
       evidence_for = &c.settings;
     }
@@ -156,6 +176,7 @@ std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& re
     s.sign_neg_log10_p = st.sign_p.neg_log10_p;
     s.matched_statistic = st.matched.statistic;
     s.matched_neg_log10_p = st.matched.neg_log10_p;
+    s.matched_reading = evidence.readings[static_cast<std::size_t>(st.reading)];
     s.p_value = st.p.p;
     s.neg_log10_p = st.p.neg_log10_p;
     s.corrected_p = s.p_value;

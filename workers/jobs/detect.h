@@ -46,6 +46,7 @@ struct CopyScore {
   double null_mean = 0, null_sd = 0;  // of the correlation over the null sequences
   double sign_neg_log10_p = 0;        // the sign count's: the smaller of the two above
   double matched_statistic = 0, matched_neg_log10_p = 0;  // matched_score()
+  std::string matched_reading;  // the surface reading it came from (kSurfaceReadings), "" for control points
   std::uint64_t decoded_payload = 0;
   bool payload_matches = false;
   double bit_error_rate = 0;
@@ -107,22 +108,26 @@ struct CopyStatistics {
   Extraction sign;
   NullCalibration calibration;
   MarkP sign_p;
+  // The largest of the readings' matched scores, its p multiplied by their count (Bonferroni).
   MatchedScore matched;
+  int reading = 0;  // which of SuspectEvidence::matched it is
   MarkP p;                    // combined_p(sign_p, matched)
   std::vector<bool> message;  // decoded by the stronger statistic
 };
 // What scoring takes from a suspect that no copy's key changes, made once for all the copies of
 // a polyhedron with the same settings: the sign count's spectral displacement, the calibration's
 // null sequences, and the matched score's evidence, read on the suspect's surface
-// (watermark/surface_evidence.h) when `surface` holds offsets (a surface-fit suspect), else from
-// the registered control points (coefficient_evidence).
+// (watermark/surface_evidence.h), once per reading, when `surfaces` holds offsets (a surface-fit
+// suspect: surface_readings()), else from the registered control points (coefficient_evidence).
 struct SuspectEvidence {
   SpectralDisplacement spectral;
   NullSequences nulls;
-  CoefficientEvidence matched;
+  std::vector<CoefficientEvidence> matched;  // one per reading, at least one
+  std::vector<std::string> readings;         // their names (kSurfaceReadings), "" for the control points'
 };
 SuspectEvidence suspect_evidence(const SpectralBasis& basis, const Points& original, const Points& registered,
-                                 const SurfaceOffsets* surface, int message_bits, const EmbedParams& params);
+                                 const std::vector<SurfaceOffsets>* surfaces, int message_bits,
+                                 const EmbedParams& params);
 
 CopyStatistics copy_statistics(const SpectralBasis& basis, const SuspectEvidence& evidence, const Key& key,
                                const Nonce& nonce, const EmbedParams& params, const std::vector<bool>& expected);
@@ -131,7 +136,7 @@ CopyStatistics copy_statistics(const SpectralBasis& basis, const SuspectEvidence
 // uncorrected (corrected_p = p_value), in input order.
 std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,
                                     const std::vector<CopyCandidate>& copies,
-                                    const SurfaceOffsets* surface = nullptr);
+                                    const std::vector<SurfaceOffsets>* surfaces = nullptr);
 // Bonferroni: min(1, p x copies tried).
 double corrected_p(double p, int copies_tried);
 // The better of two scores for the verdict: the smaller corrected p, then the larger correlation.

@@ -268,7 +268,7 @@ Alignment align_suspect(const PreparedAsset& asset, const std::string& polyhedro
     a.residual = r.residual_rms;
     a.matched_fraction = r.matched_fraction;
     a.attack_model = r.attack_model;
-    if (r.method == "surface-fit") a.surface = surface_offsets(*ctx, in_frame, r.to_control_frame);
+    if (r.method == "surface-fit") a.surfaces = surface_readings(*ctx, in_frame, r.to_control_frame);
   } catch (const InputError& e) {  // this candidate does not fit; others may
     a.method = std::string("none: ") + e.reason();
   }
@@ -305,7 +305,7 @@ Detection detect_suspect(DetectionStore& st, const Suspect& suspect, const Detec
       t.copies = std::move(copies);
       const std::vector<CopyCandidate> cands = copy_candidates(st, t.copies);
       if (std::isfinite(t.alignment.residual) && prep.control.num_vertices() == t.alignment.points.rows())
-        t.scores = score_copies(prep, t.alignment.points, cands, &t.alignment.surface);
+        t.scores = score_copies(prep, t.alignment.points, cands, &t.alignment.surfaces);
       d.copies_tried += static_cast<int>(t.scores.size());
       d.tried.push_back(std::move(t));
     }

@@ -83,7 +83,7 @@ struct Alignment {
   double residual = std::numeric_limits<double>::infinity();  // RMS, unit-box units
   double matched_fraction = 0;
   std::string attack_model;    // resynchronize()'s: the attack modelled and taken out, or ""
-  SurfaceOffsets surface;      // "surface-fit": the suspect's offsets the matched score reads
+  std::vector<SurfaceOffsets> surfaces;  // "surface-fit": surface_readings(), what the matched score reads
   double context_mb = 0;       // the context's memory after use (for logs)
   std::string levels_built;    // e.g. "012--" (for logs)
 };

@@ -43,17 +43,25 @@ SurfaceOffsets surface_offsets(const ResyncContext& context, const Mesh& suspect
   out.normals.resize(m, 3);
   for (int i = 0; i < m; ++i) out.normals.row(i) = normals[static_cast<std::size_t>(i)].transpose();
   out.offsets = Eigen::Map<const Eigen::VectorXd>(offsets.data(), m);
-  out.nuisance.resize(m, 8);
+  out.nuisance.resize(m, 7);
   // About the control's centroid, so the rotation and scale columns are not nearly the others.
   const Eigen::Vector3d centre = ctx.control.points.colwise().mean().transpose();
   for (int i = 0; i < m; ++i) {
     const Eigen::Vector3d& nv = normals[static_cast<std::size_t>(i)];
     const Eigen::Vector3d p = points[static_cast<std::size_t>(i)] - centre;
-    out.nuisance(i, 0) = 1;
-    out.nuisance.block<1, 3>(i, 1) = nv.transpose();
-    out.nuisance.block<1, 3>(i, 4) = p.cross(nv).transpose();
-    out.nuisance(i, 7) = nv.dot(p);
+    out.nuisance.block<1, 3>(i, 0) = nv.transpose();
+    out.nuisance.block<1, 3>(i, 3) = p.cross(nv).transpose();
+    out.nuisance(i, 6) = nv.dot(p);
   }
+  return out;
+}
+
+std::vector<SurfaceOffsets> surface_readings(const ResyncContext& context, const Mesh& suspect,
+                                             const Similarity& to_control_frame) {
+  std::vector<SurfaceOffsets> out;
+  out.push_back(surface_offsets(context, suspect, Similarity()));
+  out.back().nuisance.resize(out.back().offsets.size(), 0);
+  out.push_back(surface_offsets(context, suspect, to_control_frame));
   return out;
 }
 

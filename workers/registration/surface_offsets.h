@@ -5,6 +5,7 @@
 // rather than area samples, because a coarse remesh's faces cut chords through curved regions.
 #pragma once
 #include <Eigen/Sparse>
+#include <vector>
 
 #include "meshio/mesh.h"
 #include "registration/align_similarity.h"
@@ -19,8 +20,9 @@ struct SurfaceOffsets {
   Eigen::SparseMatrix<double> rows;
   Points normals;           // m x 3: unit normal of the original triangle under sample i
   Eigen::VectorXd offsets;  // m: (suspect point - closest point) . normal, in the control's frame
-  // m x 8: the offsets a small error of the alignment makes, which are not the mark's: a constant
-  // (an inflation), n (translation), p x n (rotation), n . p (scale), p the closest point.
+  // m x 7: the offsets a small error of the alignment makes, which are not the mark's: n
+  // (translation), p x n (rotation), n . p (scale), p the closest point (the constant, an
+  // inflation, is surface_evidence's own).
   Eigen::MatrixXd nuisance;
   bool empty() const { return offsets.size() == 0; }
 };
@@ -31,5 +33,14 @@ struct SurfaceOffsets {
 // diagonal are left out (where the suspect is not the part).
 SurfaceOffsets surface_offsets(const ResyncContext& context, const Mesh& suspect, const Similarity& to_control_frame,
                                int max_samples = 100000, double max_distance = 0.02);
+
+// The two readings a detection scores, in this order: the suspect where it lies in the asset's
+// frame, with no alignment terms (a copy leaked unmoved keeps its mark whole there, also its
+// lowest frequencies, which on a disc or a plate look like a small tilt or scale and which the
+// alignment and its terms would take: abc7 remeshed, -log10 p 0 aligned, 33-94 in frame), and in
+// the aligned pose with the alignment's error terms (a copy that was moved).
+constexpr const char* kSurfaceReadings[] = {"asset frame", "aligned"};
+std::vector<SurfaceOffsets> surface_readings(const ResyncContext& context, const Mesh& suspect,
+                                             const Similarity& to_control_frame);
 
 }  // namespace mm

@@ -8,8 +8,8 @@
 // n_axis(i) (R W_k)_i g_j, with R the samples' rows over the control points, W_k the k-th Kirchhoff
 // eigenvector and g_j the coefficient's embedding move (the same for every copy; only its sign
 // is the key's). Ridge regression with a unit prior on each gain beta_j and free nuisance terms
-// (what a small error of the alignment explains), the ridge ten times the residual variance,
-// refitted three times (the reference computation in the detection issue). u_j = beta_j times the move's direction, scored by
+// (what a small error of the alignment explains), the ridge equal to the residual variance (the
+// posterior mean), refitted three times. u_j = beta_j times the move's direction, scored by
 // matched_score(): for a suspect made without a copy's key, its signs are independent of u, so
 // Hoeffding's bound holds exactly whatever the fit did.
 #pragma once
