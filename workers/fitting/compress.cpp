@@ -376,6 +376,7 @@ std::unique_ptr<CompressState> fit_rounds(const Mesh& input, const CompressOptio
     } else if (!o.coarsen && o.levels > 1) {
       FitOptions coarse = fit;
       coarse.levels = o.levels - 1;
+      coarse.face_interiors = false;
       fit_variants(from_part, coarse, &coarse);
       fits = false;
       level = coarse.levels;

@@ -28,6 +28,10 @@ struct FitOptions {
   // 0: plain least squares. compress() sets it without coarsening (compress.cpp, kReweight).
   double reweight = 0;
   std::uint64_t seed = 1;     // sampling is deterministic for a given seed
+  // Charge the refined triangles' centroids' distances to FitResult::region_error too (where a
+  // triangle cuts across a notch of the part that no vertex shows). Off for a fit at a coarser
+  // level than the surface it steers, whose larger triangles would overstate those distances.
+  bool face_interiors = true;
 };
 
 // Distances between the subdivided surface and the target, in the target's units.
