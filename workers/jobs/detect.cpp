@@ -125,7 +125,7 @@ CopyStatistics copy_statistics(const SpectralBasis& basis, const SuspectEvidence
 
 SuspectEvidence suspect_evidence(const SpectralBasis& basis, const Points& original, const Points& registered,
                                  const std::vector<SurfaceOffsets>* surfaces, int message_bits,
-                                 const EmbedParams& params) {
+                                 const EmbedParams& params, bool control_reading) {
   SuspectEvidence e;
   e.spectral = spectral_displacement(basis, original, registered);
   for (std::size_t r = 0; surfaces && r < surfaces->size(); ++r) {
@@ -135,9 +135,9 @@ SuspectEvidence suspect_evidence(const SpectralBasis& basis, const Points& origi
         surface_evidence(basis, original, s.rows, s.normals, s.offsets, s.nuisance, message_bits, params));
     e.readings.push_back(r < std::size(kSurfaceReadings) ? kSurfaceReadings[r] : "surface " + std::to_string(r));
   }
-  if (e.matched.empty()) {
+  if (e.matched.empty() || control_reading) {
     e.matched.push_back(coefficient_evidence(basis, original, registered, message_bits, params));
-    e.readings.push_back("");
+    e.readings.push_back("control points");
   }
   // The sign count runs over the sequence's r * l entries, as the matched evidence does.
   e.nulls = make_null_sequences(e.matched.front().u.size());
@@ -146,7 +146,7 @@ SuspectEvidence suspect_evidence(const SpectralBasis& basis, const Points& origi
 
 std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,
                                     const std::vector<CopyCandidate>& copies,
-                                    const std::vector<SurfaceOffsets>* surfaces) {
+                                    const std::vector<SurfaceOffsets>* surfaces, bool control_reading) {
   std::vector<CopyScore> scores;
   // The evidence depends on the suspect and the copies' settings, not on keys.
   SuspectEvidence evidence;
@@ -157,7 +157,7 @@ std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& re
         evidence_for->params.strength != c.settings.params.strength ||
         evidence_for->params.threshold != c.settings.params.threshold) {
       evidence = suspect_evidence(asset.basis, asset.control.points, registered, surfaces, c.settings.message_bits,
-                                  c.settings.params);
+                                  c.settings.params, control_reading);
       evidence_for = &c.settings;
     }
     const std::vector<bool> expected = payload_to_bits(c.payload, c.settings.message_bits);

@@ -46,7 +46,7 @@ struct CopyScore {
   double null_mean = 0, null_sd = 0;  // of the correlation over the null sequences
   double sign_neg_log10_p = 0;        // the sign count's: the smaller of the two above
   double matched_statistic = 0, matched_neg_log10_p = 0;  // matched_score()
-  std::string matched_reading;  // the surface reading it came from (kSurfaceReadings), "" for control points
+  std::string matched_reading;  // the reading it came from (kSurfaceReadings, "control points")
   std::uint64_t decoded_payload = 0;
   bool payload_matches = false;
   double bit_error_rate = 0;
@@ -118,16 +118,17 @@ struct CopyStatistics {
 // a polyhedron with the same settings: the sign count's spectral displacement, the calibration's
 // null sequences, and the matched score's evidence, read on the suspect's surface
 // (watermark/surface_evidence.h), once per reading, when `surfaces` holds offsets (a surface-fit
-// suspect: surface_readings()), else from the registered control points (coefficient_evidence).
+// suspect: surface_readings()), else from the registered control points (coefficient_evidence);
+// with `control_reading` from both (a piece: its control points, and its surface in frame).
 struct SuspectEvidence {
   SpectralDisplacement spectral;
   NullSequences nulls;
   std::vector<CoefficientEvidence> matched;  // one per reading, at least one
-  std::vector<std::string> readings;         // their names (kSurfaceReadings), "" for the control points'
+  std::vector<std::string> readings;         // their names (kSurfaceReadings, "control points")
 };
 SuspectEvidence suspect_evidence(const SpectralBasis& basis, const Points& original, const Points& registered,
                                  const std::vector<SurfaceOffsets>* surfaces, int message_bits,
-                                 const EmbedParams& params);
+                                 const EmbedParams& params, bool control_reading = false);
 
 CopyStatistics copy_statistics(const SpectralBasis& basis, const SuspectEvidence& evidence, const Key& key,
                                const Nonce& nonce, const EmbedParams& params, const std::vector<bool>& expected);
@@ -136,7 +137,8 @@ CopyStatistics copy_statistics(const SpectralBasis& basis, const SuspectEvidence
 // uncorrected (corrected_p = p_value), in input order.
 std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,
                                     const std::vector<CopyCandidate>& copies,
-                                    const std::vector<SurfaceOffsets>* surfaces = nullptr);
+                                    const std::vector<SurfaceOffsets>* surfaces = nullptr,
+                                    bool control_reading = false);
 // Bonferroni: min(1, p x copies tried).
 double corrected_p(double p, int copies_tried);
 // The better of two scores for the verdict: the smaller corrected p, then the larger correlation.

@@ -56,11 +56,16 @@ SurfaceOffsets surface_offsets(const ResyncContext& context, const Mesh& suspect
   return out;
 }
 
+SurfaceOffsets surface_in_frame(const ResyncContext& context, const Mesh& suspect) {
+  SurfaceOffsets s = surface_offsets(context, suspect, Similarity());
+  s.nuisance.resize(s.offsets.size(), 0);
+  return s;
+}
+
 std::vector<SurfaceOffsets> surface_readings(const ResyncContext& context, const Mesh& suspect,
                                              const Similarity& to_control_frame) {
   std::vector<SurfaceOffsets> out;
-  out.push_back(surface_offsets(context, suspect, Similarity()));
-  out.back().nuisance.resize(out.back().offsets.size(), 0);
+  out.push_back(surface_in_frame(context, suspect));
   out.push_back(surface_offsets(context, suspect, to_control_frame));
   return out;
 }

@@ -40,6 +40,8 @@ SurfaceOffsets surface_offsets(const ResyncContext& context, const Mesh& suspect
 // alignment and its terms would take: abc7 remeshed, -log10 p 0 aligned, 33-94 in frame), and in
 // the aligned pose with the alignment's error terms (a copy that was moved).
 constexpr const char* kSurfaceReadings[] = {"asset frame", "aligned"};
+// The first reading alone: surface_offsets() unmoved, with no alignment terms.
+SurfaceOffsets surface_in_frame(const ResyncContext& context, const Mesh& suspect);
 std::vector<SurfaceOffsets> surface_readings(const ResyncContext& context, const Mesh& suspect,
                                              const Similarity& to_control_frame);
 
