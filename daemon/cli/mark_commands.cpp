@@ -336,17 +336,13 @@ void add_extract_command(CLI::App& app) {
     bool aligned = false;
     const double mark = mark_rms(ctl, rec.message_bits, rec.params);
     const Resynchronized rs = resync(ctx, ctl, suspect, opts, mark, aligned);
-    // What the matched score reads, as in a detect job (jobs::align_suspect).
-    std::vector<SurfaceOffsets> surfaces;
-    if (rs.method == "surface-fit") surfaces = surface_readings(ctx, suspect, rs.to_control_frame);
-    if (rs.method == "piece") surfaces.push_back(surface_in_frame(ctx, suspect));
+    const jobs::SuspectReadings readings = jobs::suspect_readings(ctx, suspect, rs);
 
     const std::vector<bool> expected = message_to_bits(rec.message);
     // Scored as the daemon scores a copy (jobs::copy_statistics): the sign count with its
     // calibrated null, the matched score, the verdict on the smaller p of the two, doubled.
     const jobs::SuspectEvidence evidence = jobs::suspect_evidence(ctl.basis, ctl.normalized.points, rs.points,
-                                                                  &surfaces, rec.message_bits, rec.params,
-                                                                  rs.method == "piece");
+                                                                  &readings, rec.message_bits, rec.params);
     const jobs::CopyStatistics st = jobs::copy_statistics(ctl.basis, evidence, key, rec.nonce, rec.params, expected);
     const Extraction& ex = st.sign;
     const NullCalibration& cal = st.calibration;

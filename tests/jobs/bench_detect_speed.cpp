@@ -71,7 +71,7 @@ void BM_DetectOneSuspect(benchmark::State& state) {
   double best = 0;
   for (auto _ : state) {
     const Alignment a = align_suspect(s.asset, "rocker", suspect, "suspect", cached);
-    std::vector<CopyScore> scores = score_copies(s.asset, a.points, copies, &a.surfaces);
+    std::vector<CopyScore> scores = score_copies(s.asset, a.points, copies, &a.readings);
     for (auto& c : scores) c.corrected_p = corrected_p(c.p_value, static_cast<int>(copies.size()));
     benchmark::DoNotOptimize(scores.data());
     method = a.method;
@@ -105,7 +105,7 @@ void BM_ScoreRemeshedSuspect(benchmark::State& state) {
   const Alignment a = align_suspect(s.asset, "rocker", s.suspects.at(1), "suspect", cached);
   const std::vector<CopyCandidate> copies(s.copies.begin(), s.copies.begin() + 3);
   for (auto _ : state) {
-    std::vector<CopyScore> scores = score_copies(s.asset, a.points, copies, &a.surfaces);
+    std::vector<CopyScore> scores = score_copies(s.asset, a.points, copies, &a.readings);
     benchmark::DoNotOptimize(scores.data());
   }
 }

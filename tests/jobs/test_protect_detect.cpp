@@ -281,8 +281,8 @@ TEST(ProtectDetectRemesh, RemeshedCopyOfASymmetricPartIsTracedInTheAssetsFrame) 
   const Resynchronized r = resynchronize_suspect(ctx, leaked);
   ASSERT_EQ(r.method, "surface-fit");
   const double turn = Eigen::AngleAxisd(r.to_control_frame.rotation).angle();
-  const std::vector<SurfaceOffsets> surfaces = surface_readings(ctx, leaked, r.to_control_frame);
-  std::vector<CopyScore> scores = score_copies(asset, r.points, copies, &surfaces);
+  const SuspectReadings readings = suspect_readings(ctx, leaked, r);
+  std::vector<CopyScore> scores = score_copies(asset, r.points, copies, &readings);
   std::cout << "abc5 remeshed 1 %: pose turned " << turn << " rad, -log10 p";
   for (const auto& s : scores) std::cout << " " << s.neg_log10_p;
   std::cout << "\n";

@@ -123,19 +123,29 @@ CopyStatistics copy_statistics(const SpectralBasis& basis, const SuspectEvidence
   return s;
 }
 
+SuspectReadings suspect_readings(const ResyncContext& context, const Mesh& suspect, const Resynchronized& r) {
+  SuspectReadings out;
+  if (r.method == "surface-fit") {
+    out.surfaces = surface_readings(context, suspect, r.to_control_frame);
+    out.control_points = false;
+  } else if (r.method == "piece") {
+    out.surfaces.push_back(surface_in_frame(context, suspect));
+  }
+  return out;
+}
+
 SuspectEvidence suspect_evidence(const SpectralBasis& basis, const Points& original, const Points& registered,
-                                 const std::vector<SurfaceOffsets>* surfaces, int message_bits,
-                                 const EmbedParams& params, bool control_reading) {
+                                 const SuspectReadings* readings, int message_bits, const EmbedParams& params) {
   SuspectEvidence e;
   e.spectral = spectral_displacement(basis, original, registered);
-  for (std::size_t r = 0; surfaces && r < surfaces->size(); ++r) {
-    const SurfaceOffsets& s = (*surfaces)[r];
+  for (std::size_t r = 0; readings && r < readings->surfaces.size(); ++r) {
+    const SurfaceOffsets& s = readings->surfaces[r];
     if (s.empty()) continue;
     e.matched.push_back(
         surface_evidence(basis, original, s.rows, s.normals, s.offsets, s.nuisance, message_bits, params));
     e.readings.push_back(r < std::size(kSurfaceReadings) ? kSurfaceReadings[r] : "surface " + std::to_string(r));
   }
-  if (e.matched.empty() || control_reading) {
+  if (e.matched.empty() || !readings || readings->control_points) {
     e.matched.push_back(coefficient_evidence(basis, original, registered, message_bits, params));
     e.readings.push_back("control points");
   }
@@ -145,8 +155,7 @@ SuspectEvidence suspect_evidence(const SpectralBasis& basis, const Points& origi
 }
 
 std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,
-                                    const std::vector<CopyCandidate>& copies,
-                                    const std::vector<SurfaceOffsets>* surfaces, bool control_reading) {
+                                    const std::vector<CopyCandidate>& copies, const SuspectReadings* readings) {
   std::vector<CopyScore> scores;
   // The evidence depends on the suspect and the copies' settings, not on keys.
   SuspectEvidence evidence;
@@ -156,8 +165,8 @@ std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& re
         evidence_for->params.method != c.settings.params.method ||
         evidence_for->params.strength != c.settings.params.strength ||
         evidence_for->params.threshold != c.settings.params.threshold) {
-      evidence = suspect_evidence(asset.basis, asset.control.points, registered, surfaces, c.settings.message_bits,
-                                  c.settings.params, control_reading);
+      evidence = suspect_evidence(asset.basis, asset.control.points, registered, readings, c.settings.message_bits,
+                                  c.settings.params);
       evidence_for = &c.settings;
     }
     const std::vector<bool> expected = payload_to_bits(c.payload, c.settings.message_bits);

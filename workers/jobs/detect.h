@@ -114,12 +114,23 @@ struct CopyStatistics {
   MarkP p;                    // combined_p(sign_p, matched)
   std::vector<bool> message;  // decoded by the stronger statistic
 };
+// What the matched score reads of a suspect resynchronised as `r`, the one rule of detect jobs and
+// `meshmark extract`: a "surface-fit" suspect, surface_readings(); a "piece", its surface in the
+// asset's frame besides its control points (a simplification may thin a piece's vertices out
+// until its control points are poorly determined while its surface still carries the mark);
+// anything else, its control points.
+struct SuspectReadings {
+  std::vector<SurfaceOffsets> surfaces;
+  bool control_points = true;
+};
+SuspectReadings suspect_readings(const ResyncContext& context, const Mesh& suspect, const Resynchronized& r);
+
 // What scoring takes from a suspect that no copy's key changes, made once for all the copies of
 // a polyhedron with the same settings: the sign count's spectral displacement, the calibration's
-// null sequences, and the matched score's evidence, read on the suspect's surface
-// (watermark/surface_evidence.h), once per reading, when `surfaces` holds offsets (a surface-fit
-// suspect: surface_readings()), else from the registered control points (coefficient_evidence);
-// with `control_reading` from both (a piece: its control points, and its surface in frame).
+// null sequences, and the matched score's evidence, one per reading: on the suspect's surface
+// (watermark/surface_evidence.h) for each of `readings`' non-empty surfaces, and from the
+// registered control points (coefficient_evidence) when it asks for them or has no surface
+// (`readings` null: the control points alone).
 struct SuspectEvidence {
   SpectralDisplacement spectral;
   NullSequences nulls;
@@ -127,8 +138,7 @@ struct SuspectEvidence {
   std::vector<std::string> readings;         // their names (kSurfaceReadings, "control points")
 };
 SuspectEvidence suspect_evidence(const SpectralBasis& basis, const Points& original, const Points& registered,
-                                 const std::vector<SurfaceOffsets>* surfaces, int message_bits,
-                                 const EmbedParams& params, bool control_reading = false);
+                                 const SuspectReadings* readings, int message_bits, const EmbedParams& params);
 
 CopyStatistics copy_statistics(const SpectralBasis& basis, const SuspectEvidence& evidence, const Key& key,
                                const Nonce& nonce, const EmbedParams& params, const std::vector<bool>& expected);
@@ -137,8 +147,7 @@ CopyStatistics copy_statistics(const SpectralBasis& basis, const SuspectEvidence
 // uncorrected (corrected_p = p_value), in input order.
 std::vector<CopyScore> score_copies(const PreparedAsset& asset, const Points& registered,
                                     const std::vector<CopyCandidate>& copies,
-                                    const std::vector<SurfaceOffsets>* surfaces = nullptr,
-                                    bool control_reading = false);
+                                    const SuspectReadings* readings = nullptr);
 // Bonferroni: min(1, p x copies tried).
 double corrected_p(double p, int copies_tried);
 // The better of two scores for the verdict: the smaller corrected p, then the larger correlation.

@@ -268,14 +268,7 @@ Alignment align_suspect(const PreparedAsset& asset, const std::string& polyhedro
     a.residual = r.residual_rms;
     a.matched_fraction = r.matched_fraction;
     a.attack_model = r.attack_model;
-    if (r.method == "surface-fit") a.surfaces = surface_readings(*ctx, in_frame, r.to_control_frame);
-    // A piece lies where it was issued; its vertices are refined vertices, which a simplification
-    // thinned out until its control points are poorly determined (abc7 kept at a tenth), while
-    // its surface still carries the mark.
-    if (r.method == "piece") {
-      a.surfaces.push_back(surface_in_frame(*ctx, in_frame));
-      a.control_reading = true;
-    }
+    a.readings = suspect_readings(*ctx, in_frame, r);
   } catch (const InputError& e) {  // this candidate does not fit; others may
     a.method = std::string("none: ") + e.reason();
   }
@@ -312,8 +305,7 @@ Detection detect_suspect(DetectionStore& st, const Suspect& suspect, const Detec
       t.copies = std::move(copies);
       const std::vector<CopyCandidate> cands = copy_candidates(st, t.copies);
       if (std::isfinite(t.alignment.residual) && prep.control.num_vertices() == t.alignment.points.rows())
-        t.scores = score_copies(prep, t.alignment.points, cands, &t.alignment.surfaces,
-                                t.alignment.control_reading);
+        t.scores = score_copies(prep, t.alignment.points, cands, &t.alignment.readings);
       d.copies_tried += static_cast<int>(t.scores.size());
       d.tried.push_back(std::move(t));
     }

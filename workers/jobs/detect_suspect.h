@@ -83,10 +83,7 @@ struct Alignment {
   double residual = std::numeric_limits<double>::infinity();  // RMS, unit-box units
   double matched_fraction = 0;
   std::string attack_model;    // resynchronize()'s: the attack modelled and taken out, or ""
-  // What the matched score reads: "surface-fit", surface_readings(); "piece", its surface in the
-  // asset's frame besides its control points (control_reading).
-  std::vector<SurfaceOffsets> surfaces;
-  bool control_reading = false;
+  SuspectReadings readings;    // what the matched score reads (suspect_readings())
   double context_mb = 0;       // the context's memory after use (for logs)
   std::string levels_built;    // e.g. "012--" (for logs)
 };
