@@ -119,7 +119,9 @@ CopyRecord record_from_json(const std::string& text, const std::string& source) 
     throw InputError(source, std::string("not a copy record (malformed JSON: ") + e.what() + ")");
   }
   auto fail = [&](const std::string& why) -> void { throw InputError(source, "not a valid copy record: " + why); };
-  if (!j.is_object() || j.value("format", std::string()) != "meshmark-copy-record")
+  // A "format" of another type is refused like a wrong one (json::value would throw type_error).
+  if (!j.is_object() || !j.contains("format") || !j["format"].is_string() ||
+      j["format"].get<std::string>() != "meshmark-copy-record")
     fail("\"format\" is not \"meshmark-copy-record\"");
   CopyRecord r;
   try {

@@ -117,7 +117,7 @@ OpenedEnvelope open_envelope(const fs::path& file, const std::vector<keys::Publi
   json envelope;
   try {
     envelope = json::parse(read_file(file.string()));
-    if (envelope.value("payloadType", "") != kDssePayloadType) {
+    if (!envelope.is_object() || !envelope.contains("payloadType") || envelope["payloadType"] != kDssePayloadType) {
       o.error = name + ": payload type is not " + std::string(kDssePayloadType);
       return o;
     }
@@ -126,15 +126,21 @@ OpenedEnvelope open_envelope(const fs::path& file, const std::vector<keys::Publi
     o.error = name + ": unreadable envelope: " + e.what();
     return o;
   }
-  for (const auto& sj : envelope.value("signatures", json::array())) {
+  const json signatures = envelope.contains("signatures") && envelope["signatures"].is_array()
+                              ? envelope["signatures"] : json::array();
+  for (const auto& sj : signatures) {
+    // A signature entry of the wrong shape counts as no signature, never as an exception.
+    if (!sj.is_object() || !sj.contains("sig") || !sj["sig"].is_string() || !sj.contains("keyid") ||
+        !sj["keyid"].is_string())
+      continue;
     std::string sig;
     try {
-      sig = keys::from_base64(sj.value("sig", ""), "signature");
+      sig = keys::from_base64(sj["sig"].get<std::string>(), "signature");
     } catch (const std::exception&) {
       continue;
     }
     for (const auto& k : trusted)
-      if (sj.value("keyid", "") == k.id() &&
+      if (sj["keyid"].get<std::string>() == k.id() &&
           keys::signature_valid(k, dsse_pae(kDssePayloadType, o.body), std::vector<std::uint8_t>(sig.begin(), sig.end())))
         o.signer = k.id();
   }

@@ -160,6 +160,24 @@ TEST_F(Evidence, AnyFlippedByteOfThePackageFailsNamingWhatFailed) {
   }
 }
 
+TEST_F(Evidence, AnEnvelopeOfTheWrongShapeFailsCleanly) {
+  // Hand-written envelopes whose fields have the wrong JSON types: refused with a reason, exit 1.
+  const std::string payload = nlohmann::json::parse(slurp(package + "/statement.dsse.json"))["payload"];
+  const std::vector<std::string> envelopes = {
+      "[]",
+      R"({"payloadType": 7})",
+      R"({"payloadType": "application/vnd.in-toto+json", "payload": ")" + payload + R"(", "signatures": "x"})",
+      R"({"payloadType": "application/vnd.in-toto+json", "payload": ")" + payload + R"(", "signatures": [1, {"sig": 2, "keyid": []}]})"};
+  for (const auto& envelope : envelopes) {
+    const std::string dir = copy_package("shape");
+    std::ofstream(dir + "/statement.dsse.json", std::ios::binary | std::ios::trunc) << envelope;
+    const auto r = meshmark(*s, {"verify", dir, "--pubkey", *s / "pub.txt"});
+    EXPECT_EQ(r.code, 1) << envelope << "\n" << r.out << r.err;
+    EXPECT_NE(r.out.find("statement.dsse.json"), std::string::npos) << envelope << "\n" << r.out;
+    EXPECT_NE(r.err.find("does not verify"), std::string::npos) << envelope << "\n" << r.err;
+  }
+}
+
 TEST_F(Evidence, AddedFilesOtherKeysAndAlteredReferencedFilesFail) {
   std::string dir = copy_package("extra");
   std::ofstream(dir + "/note.txt") << "added later";
