@@ -1,6 +1,6 @@
 // Closest-point answers on triangles and segments (which primitive was hit and where on it, so a
-// hit can be expressed in the primitive's vertices), and a triangle index on CGAL's AABB tree for
-// fixed triangle sets (registration). The fit's moving surfaces use closest_point_bvh.h.
+// hit can be expressed in the primitive's vertices), and a triangle index for fixed triangle sets
+// (registration, evidence), on the fit's bounding volume hierarchy (closest_point_bvh.h).
 #pragma once
 #include <Eigen/Core>
 #include <array>
@@ -33,8 +33,7 @@ struct SegmentHit {
 
 class TriangleIndex {
  public:
-  // Triangles as vertex index triples into `points`; degenerate ones are left out of the tree.
-  // Queries without a hint start from a kd-tree over the triangles, built here.
+  // Triangles as vertex index triples into `points`; degenerate ones are never reported.
   TriangleIndex(const Points& points, std::vector<std::array<int, 3>> triangles);
   ~TriangleIndex();
   TriangleIndex(const TriangleIndex&) = delete;

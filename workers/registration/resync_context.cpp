@@ -42,9 +42,9 @@ std::size_t bytes_of(const Mesh& m) {
   for (const auto& f : m.faces) b += f.capacity() * sizeof(int) + 16;  // + malloc's chunk header
   return b;
 }
-// TriangleIndex (its copy of the triangles, CGAL's AABB tree with a node and a primitive per
-// triangle, the kd-tree its searches start from): about 300 bytes per triangle, measured with
-// mallinfo2 on the creased fandisk_quads at level 3 (98k triangles);
+// TriangleIndex (two copies of the triangles, the hierarchy's 160-byte slot per triangle and a
+// node per two): about 300 bytes per triangle, as mallinfo2 measured the former CGAL tree on the
+// creased fandisk_quads at level 3 (98k triangles);
 // tests/registration/test_resync_context.cpp checks the whole estimate against the heap.
 constexpr std::size_t kTriangleIndexBytesPerTriangle = 300;
 

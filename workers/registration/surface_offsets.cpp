@@ -4,8 +4,13 @@
 
 namespace mm {
 
-SurfaceOffsets surface_offsets(const ResyncContext& context, const Mesh& suspect, const Similarity& to_control_frame,
-                               int max_samples, double max_distance) {
+namespace {
+
+// surface_offsets(), each sample's search started from its triangle in `starts` (another
+// reading's answers; empty: none), which then holds this reading's: a second reading of the same
+// samples in a nearby frame costs a fraction of the first. Starts change no answer but a tie's.
+SurfaceOffsets offsets_from(const ResyncContext& context, const Mesh& suspect, const Similarity& to_control_frame,
+                            int max_samples, double max_distance, std::vector<int>& starts) {
   using registration_detail::strided;
   using registration_detail::Trip;
   const ResyncContext::Impl& ctx = context.impl();
@@ -19,10 +24,13 @@ SurfaceOffsets surface_offsets(const ResyncContext& context, const Mesh& suspect
   std::vector<Eigen::Vector3d> normals;
   std::vector<double> offsets;
   std::vector<Eigen::Vector3d> points;
+  starts.resize(static_cast<std::size_t>(moved.rows()), -1);
   for (Eigen::Index k = 0; k < moved.rows(); ++k) {
     const Eigen::Vector3d q = moved.row(k).transpose();
     if (!q.allFinite()) continue;
-    const TriangleHit h = fit.tree->closest(q);
+    int& start = starts[static_cast<std::size_t>(k)];
+    const TriangleHit h = fit.tree->closest(q, TriangleHint{start, {}});
+    start = h.triangle;
     if (!(h.distance <= max_d)) continue;
     const auto& f = fit.tris[static_cast<std::size_t>(h.triangle)];
     const Eigen::Vector3d p0 = level.points.row(f[0]), p1 = level.points.row(f[1]), p2 = level.points.row(f[2]);
@@ -56,17 +64,30 @@ SurfaceOffsets surface_offsets(const ResyncContext& context, const Mesh& suspect
   return out;
 }
 
-SurfaceOffsets surface_in_frame(const ResyncContext& context, const Mesh& suspect) {
-  SurfaceOffsets s = surface_offsets(context, suspect, Similarity());
+SurfaceOffsets without_nuisance(SurfaceOffsets s) {
   s.nuisance.resize(s.offsets.size(), 0);
   return s;
 }
 
+}  // namespace
+
+SurfaceOffsets surface_offsets(const ResyncContext& context, const Mesh& suspect, const Similarity& to_control_frame,
+                               int max_samples, double max_distance) {
+  std::vector<int> starts;
+  return offsets_from(context, suspect, to_control_frame, max_samples, max_distance, starts);
+}
+
+SurfaceOffsets surface_in_frame(const ResyncContext& context, const Mesh& suspect) {
+  return without_nuisance(surface_offsets(context, suspect, Similarity()));
+}
+
 std::vector<SurfaceOffsets> surface_readings(const ResyncContext& context, const Mesh& suspect,
                                              const Similarity& to_control_frame) {
+  std::vector<int> starts;
   std::vector<SurfaceOffsets> out;
-  out.push_back(surface_in_frame(context, suspect));
-  out.push_back(surface_offsets(context, suspect, to_control_frame));
+  out.push_back(without_nuisance(
+      offsets_from(context, suspect, Similarity(), kSurfaceOffsetSamples, kSurfaceOffsetDistance, starts)));
+  out.push_back(offsets_from(context, suspect, to_control_frame, kSurfaceOffsetSamples, kSurfaceOffsetDistance, starts));
   return out;
 }
 

@@ -27,12 +27,15 @@ struct SurfaceOffsets {
   bool empty() const { return offsets.size() == 0; }
 };
 
+constexpr int kSurfaceOffsetSamples = 100000;
+constexpr double kSurfaceOffsetDistance = 0.02;
+
 // Suspect vertices (evenly strided, at most max_samples: the test's power grows with the root of
 // the vertices a noisy copy keeps, and its cost barely) mapped by to_control_frame and paired
 // with their closest points on the context's fit surface; those farther than max_distance x the
 // diagonal are left out (where the suspect is not the part).
 SurfaceOffsets surface_offsets(const ResyncContext& context, const Mesh& suspect, const Similarity& to_control_frame,
-                               int max_samples = 100000, double max_distance = 0.02);
+                               int max_samples = kSurfaceOffsetSamples, double max_distance = kSurfaceOffsetDistance);
 
 // The two readings a detection scores, in this order: the suspect where it lies in the asset's
 // frame, with no alignment terms (a copy leaked unmoved keeps its mark whole there, also its
@@ -42,6 +45,8 @@ SurfaceOffsets surface_offsets(const ResyncContext& context, const Mesh& suspect
 constexpr const char* kSurfaceReadings[] = {"asset frame", "aligned"};
 // The first reading alone: surface_offsets() unmoved, with no alignment terms.
 SurfaceOffsets surface_in_frame(const ResyncContext& context, const Mesh& suspect);
+// Both; the second pairs each vertex starting from its first answer (the same pairs but for
+// ties, in a fraction of the time).
 std::vector<SurfaceOffsets> surface_readings(const ResyncContext& context, const Mesh& suspect,
                                              const Similarity& to_control_frame);
 
