@@ -9,22 +9,22 @@ struct TriangleIndex::Impl {
 };
 
 TriangleIndex::TriangleIndex(const Points& points, std::vector<std::array<int, 3>> triangles)
-    : impl_(new Impl{TriangleBvh(points, triangles)}), triangles_(std::move(triangles)) {}
+    : impl_(new Impl{TriangleBvh(points, std::move(triangles))}) {}
 TriangleIndex::~TriangleIndex() = default;
 bool TriangleIndex::empty() const { return impl_->bvh.empty(); }
 
 TriangleHit TriangleIndex::closest(const Eigen::Vector3d& q) const { return impl_->bvh.closest(q); }
 
-TriangleHit TriangleIndex::closest(const Eigen::Vector3d& q, const TriangleHint& hint) const {
-  return impl_->bvh.closest(q, hint.triangle);
+TriangleHit TriangleIndex::closest(const Eigen::Vector3d& q, int start_triangle) const {
+  return impl_->bvh.closest(q, start_triangle);
 }
+const std::array<int, 3>& TriangleIndex::triangle(int t) const { return impl_->bvh.triangle(t); }
 
 TriangleHit HintedClosest::closest(const Eigen::Vector3d& q, Eigen::Index number) {
   const auto k = static_cast<std::size_t>(number);
-  if (k >= hints_.size()) hints_.resize(k + 1);
-  TriangleHint& hint = hints_[k];
-  const TriangleHit hit = index_.closest(q, hint);
-  hint = TriangleHint{hit.triangle, hit.point};
+  if (k >= hints_.size()) hints_.resize(k + 1, -1);
+  const TriangleHit hit = index_.closest(q, hints_[k]);
+  hints_[k] = hit.triangle;
   return hit;
 }
 

@@ -18,12 +18,6 @@ struct TriangleHit {
   double distance = 0;
 };
 
-// A previous answer near the query, to start from (much faster when queries move little).
-struct TriangleHint {
-  int triangle = -1;
-  Eigen::Vector3d point;  // must lie on that triangle (current positions)
-};
-
 struct SegmentHit {
   int segment = -1;
   Eigen::Vector3d point;
@@ -40,13 +34,14 @@ class TriangleIndex {
   TriangleIndex& operator=(const TriangleIndex&) = delete;
   bool empty() const;
   TriangleHit closest(const Eigen::Vector3d& q) const;
-  TriangleHit closest(const Eigen::Vector3d& q, const TriangleHint& hint) const;
-  const std::array<int, 3>& triangle(int t) const { return triangles_[t]; }
+  // The same, starting from a triangle near the answer (a previous answer; -1: none): much
+  // faster when queries move little, and the answer changes only among ties.
+  TriangleHit closest(const Eigen::Vector3d& q, int start_triangle) const;
+  const std::array<int, 3>& triangle(int t) const;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
-  std::vector<std::array<int, 3>> triangles_;
 };
 
 // Closest points for numbered queries that move little between calls (ICP rounds): each number
@@ -58,7 +53,7 @@ class HintedClosest {
 
  private:
   const TriangleIndex& index_;
-  std::vector<TriangleHint> hints_;
+  std::vector<int> hints_;  // per number, the triangle of its last answer (-1: none yet)
 };
 
 // Fan triangulation of every face (triangles and quads alike), as index triples.

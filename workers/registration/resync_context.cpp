@@ -42,9 +42,8 @@ std::size_t bytes_of(const Mesh& m) {
   for (const auto& f : m.faces) b += f.capacity() * sizeof(int) + 16;  // + malloc's chunk header
   return b;
 }
-// TriangleIndex (two copies of the triangles, the hierarchy's 160-byte slot per triangle and a
-// node per two): about 300 bytes per triangle, as mallinfo2 measured the former CGAL tree on the
-// creased fandisk_quads at level 3 (98k triangles);
+// TriangleIndex (its copy of the triangles, a 160-byte slot per triangle, a node per two and its
+// search record): about 300 bytes per triangle;
 // tests/registration/test_resync_context.cpp checks the whole estimate against the heap.
 constexpr std::size_t kTriangleIndexBytesPerTriangle = 300;
 

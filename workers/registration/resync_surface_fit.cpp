@@ -111,14 +111,7 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
     for (Eigen::Index k = 0; k < moved.rows(); ++k) {
       const Eigen::Vector3d q = moved.row(k).transpose();
       TriangleHit& h = hits[static_cast<size_t>(k)];
-      if (it == 0) {
-        h = surface.closest(q);
-      } else {
-        const auto& f = fit.tris[h.triangle];
-        const Eigen::Vector3d on = h.barycentric[0] * R.row(f[0]).transpose() + h.barycentric[1] * R.row(f[1]).transpose() +
-                                   h.barycentric[2] * R.row(f[2]).transpose();
-        h = surface.closest(q, TriangleHint{h.triangle, on});
-      }
+      h = it == 0 ? surface.closest(q) : surface.closest(q, h.triangle);
       if (!(h.distance <= max_d)) continue;
       const auto& f = fit.tris[h.triangle];
       const Eigen::Vector3d p0 = R.row(f[0]), p1 = R.row(f[1]), p2 = R.row(f[2]);

@@ -29,7 +29,7 @@ SurfaceOffsets offsets_from(const ResyncContext& context, const Mesh& suspect, c
     const Eigen::Vector3d q = moved.row(k).transpose();
     if (!q.allFinite()) continue;
     int& start = starts[static_cast<std::size_t>(k)];
-    const TriangleHit h = fit.tree->closest(q, TriangleHint{start, {}});
+    const TriangleHit h = fit.tree->closest(q, start);
     start = h.triangle;
     if (!(h.distance <= max_d)) continue;
     const auto& f = fit.tris[static_cast<std::size_t>(h.triangle)];

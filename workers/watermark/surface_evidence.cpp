@@ -22,9 +22,9 @@ using SpMat = Eigen::SparseMatrix<double>;
 // R^T diag(n_a n_b) R (n x n) for the six pairs a <= b of normal components, in one pass over
 // the samples' rows: the six share their pattern, so each pair of a row's entries is found once
 // and weighted six times, instead of six sparse products finding it six times.
-std::array<SpMat, 6> weighted_grams(const SpMat& rows, const Points& normals) {
+// Rt = rows^T (column i: sample i's row).
+std::array<SpMat, 6> weighted_grams(const SpMat& rows, const SpMat& Rt, const Points& normals) {
   const Eigen::Index n = rows.cols();
-  const SpMat Rt = rows.transpose();  // column i: sample i's row
   const Eigen::Index m = rows.rows();
   Eigen::MatrixXd w(6, m);
   for (Eigen::Index i = 0; i < m; ++i)
@@ -120,7 +120,7 @@ CoefficientEvidence surface_evidence(const SpectralBasis& basis, const Points& o
   // not grow with the samples (every suspect vertex can be used) and A is never held.
   const Eigen::Index cols = 3 * static_cast<Eigen::Index>(K);
   const SpMat Rt = rows.transpose();
-  const std::array<SpMat, 6> grams = weighted_grams(rows, normals);
+  const std::array<SpMat, 6> grams = weighted_grams(rows, Rt, normals);
   Eigen::VectorXd d = offsets;
   project(d);
   Eigen::MatrixXd H(cols, cols), C(Q.cols(), cols);
