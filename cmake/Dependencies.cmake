@@ -10,6 +10,8 @@ find_package(GTest REQUIRED)
 find_package(benchmark REQUIRED)
 find_package(PNG REQUIRED)
 find_package(ZLIB REQUIRED)
+# Boost.Beast (header-only in Boost 1.74) parses HTTP for meshmarkd's API.
+find_package(Boost 1.74 REQUIRED)
 
 pkg_check_modules(SODIUM REQUIRED IMPORTED_TARGET libsodium)
 # lib3mf 1.x (3MF reading and writing), its C interface. Not through its pkg-config file, which

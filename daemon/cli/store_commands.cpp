@@ -55,6 +55,11 @@ json to_json(const store::Customer& c) {
           {"created_at", iso_time(c.created_at)}};
 }
 
+json to_json(const store::ApiToken& t) {
+  return {{"id", t.id}, {"name", t.name}, {"role", store::to_string(t.role)}, {"created_at", iso_time(t.created_at)},
+          {"revoked_at", opt_time(t.revoked_at)}};
+}
+
 json to_json(const store::Job& j) {
   json errors = json::array();
   for (const auto& e : j.errors) errors.push_back({{"attempt", e.attempt}, {"at", iso_time(e.at)}, {"error", e.error}});
@@ -212,6 +217,57 @@ void add_customer(CLI::App& app) {
     int v = s->rotate_key(cust.id);
     if (cr->json) std::cout << json{{"customer", cust.name}, {"id", cust.id}, {"key_version", v}}.dump(2) << "\n";
     else std::cout << "customer " << cust.name << " now uses key version " << v << "\n";
+  }));
+}
+
+// API tokens of meshmarkd's HTTP API (docs/api.md). The token is printed once, by create.
+void add_tokens(CLI::App& app) {
+  auto* grp = app.add_subcommand("token", "Manage API tokens for meshmarkd's HTTP API");
+  grp->require_subcommand(1);
+
+  auto cc = std::make_shared<Common>();
+  auto name = std::make_shared<std::string>();
+  auto role = std::make_shared<std::string>("read");
+  auto* create = grp->add_subcommand("create", "Create a token; it is printed once and only its hash is kept");
+  create->add_option("name", *name, "token name (the client it is for): 1-64 letters, digits, '.', '_' or '-'")->required();
+  create->add_option("--role", *role, "read (status, downloads), submit (also uploads, jobs, cancel) or admin")
+      ->check(CLI::IsMember({"read", "submit", "admin"}));
+  add_common(create, *cc);
+  create->callback(guarded([cc, name, role] {
+    auto s = open(*cc);
+    auto t = s->create_token(*name, store::token_role_from_string(*role));
+    if (cc->json) {
+      json j = to_json(t.token);
+      j["token"] = t.secret;
+      std::cout << j.dump(2) << "\n";
+    } else {
+      std::cout << "token " << t.token.name << " (" << store::to_string(t.token.role) << "): " << t.secret
+                << "\n  send it as 'Authorization: Bearer <token>'; it is not shown again\n";
+    }
+  }));
+
+  auto cl = std::make_shared<Common>();
+  auto* list = grp->add_subcommand("list", "List tokens (names and roles; never the tokens)");
+  add_common(list, *cl);
+  list->callback(guarded([cl] {
+    auto s = open(*cl);
+    print_list<store::ApiToken>(s->list_tokens(), cl->json, "no tokens", [](const store::ApiToken& t) {
+      std::printf("%6lld  %-24s %-7s since %s%s\n", static_cast<long long>(t.id), t.name.c_str(),
+                  store::to_string(t.role), iso_time(t.created_at).c_str(),
+                  t.revoked_at ? ("  revoked " + iso_time(*t.revoked_at)).c_str() : "");
+    });
+  }));
+
+  auto cr = std::make_shared<Common>();
+  auto rname = std::make_shared<std::string>();
+  auto* revoke = grp->add_subcommand("revoke", "Revoke a token: requests sending it are refused from now on");
+  revoke->add_option("name", *rname, "token name")->required();
+  add_common(revoke, *cr);
+  revoke->callback(guarded([cr, rname] {
+    auto s = open(*cr);
+    if (!s->revoke_token(*rname)) throw CommandFailed(1, "no live token named '" + *rname + "' (see: meshmark token list)");
+    if (cr->json) std::cout << json{{"name", *rname}, {"revoked", true}}.dump(2) << "\n";
+    else std::cout << "token " << *rname << " revoked\n";
   }));
 }
 
@@ -393,6 +449,7 @@ void refusing_store_errors(const std::function<void()>& f) {
 void add_store_commands(CLI::App& app) {
   add_init(app);
   add_customer(app);
+  add_tokens(app);
   add_jobs(app);
   add_listings(app);
 }

@@ -1,5 +1,6 @@
 #include "service/config.h"
 
+#include "http/server.h"
 #include "meshio/read_mesh.h"
 
 #include <filesystem>
@@ -144,7 +145,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
   cfg.source = source;
   c.known(j, "", {"home", "drop_dir", "output_dir", "master_key_file", "workers", "lease_seconds",
                   "heartbeat_seconds", "max_attempts", "shutdown_grace_seconds", "poll_interval_ms",
-                  "settle_ms", "use_inotify", "input_roots", "max_input_bytes", "max_triangles", "output_format", "watermark", "compression", "detect", "evidence", "cad", "log_level",
+                  "settle_ms", "use_inotify", "input_roots", "max_input_bytes", "max_triangles", "output_format", "watermark", "compression", "detect", "evidence", "cad", "http", "log_level",
                   "log_file", "$comment"});
   c.path(j, "home", cfg.home, true);
   c.path(j, "drop_dir", cfg.drop_dir, true);
@@ -252,6 +253,24 @@ Config parse_config(const std::string& text, const std::string& source, const st
       c.integer(d, "detect.", "context_cache_mb", cfg.context_cache_mb, 0, 1048576);
     }
   }
+  if (j.contains("http")) {
+    const json& h = j["http"];
+    if (!h.is_object()) {
+      c.error("http", "must be an object");
+    } else {
+      c.known(h, "http.", {"listen", "threads", "max_body_bytes"});
+      c.string(h, "http.", "listen", cfg.http_listen);
+      if (!cfg.http_listen.empty()) {
+        try {
+          http::parse_listen(cfg.http_listen);
+        } catch (const std::invalid_argument& e) {
+          c.error("http.listen", e.what());
+        }
+      }
+      c.integer(h, "http.", "threads", cfg.http_threads, 1, 64);
+      c.integer(h, "http.", "max_body_bytes", cfg.http_max_body_bytes, 1024, 64 << 20);
+    }
+  }
   if (j.contains("evidence")) {
     const json& e = j["evidence"];
     if (!e.is_object()) {
@@ -350,6 +369,9 @@ std::map<std::string, std::string> flatten(const Config& c) {
           {"detect.context_cache_mb", std::to_string(c.context_cache_mb)},
           {"max_input_bytes", std::to_string(c.max_input_bytes)},
           {"max_triangles", std::to_string(c.max_triangles)},
+          {"http.listen", c.http_listen},
+          {"http.threads", std::to_string(c.http_threads)},
+          {"http.max_body_bytes", std::to_string(c.http_max_body_bytes)},
           {"evidence.auto", c.evidence_auto ? "true" : "false"},
           {"evidence.pdf", c.evidence_pdf ? "true" : "false"},
           {"evidence.tsa_url", c.tsa_url},
@@ -369,7 +391,7 @@ std::vector<std::string> config_changes(const Config& before, const Config& afte
 
 bool needs_restart(const std::string& line) {
   for (const char* k : {"home:", "drop_dir:", "output_dir:", "master_key_file:", "workers:", "use_inotify:",
-                        "log_file:"})
+                        "log_file:", "http.listen:", "http.threads:"})
     if (line.rfind(k, 0) == 0) return true;
   return false;
 }

@@ -67,6 +67,12 @@ struct Config {
   bool evidence_auto = false;
   bool evidence_pdf = true;
   std::string tsa_url, tsa_ca_file;
+  // HTTP API (docs/api.md): http.listen "" (off), "127.0.0.1:8440" or "unix:/run/meshmark/api.sock"
+  // (loopback or a socket only behind nginx: config/nginx-meshmark.conf); uploads are capped by
+  // max_input_bytes, JSON bodies by http.max_body_bytes.
+  std::string http_listen;
+  int http_threads = 4;
+  int http_max_body_bytes = 1 << 20;
   // Logging.
   std::string log_level = "info";  // trace debug info warn error critical off
   std::string log_file;            // "" = stderr (journald under systemd)

@@ -23,6 +23,7 @@
 namespace mm::service {
 
 using nlohmann::json;
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -227,6 +228,27 @@ void Daemon::check_inflight() {
   }
 }
 
+void Daemon::start_api() {
+  auto cfg = config();
+  if (cfg->http_listen.empty()) return;
+  const std::string uploads = (fs::path(cfg->home) / "uploads").string();
+  fs::create_directories(uploads);
+  // Uploads cut off by a crash or a kill are never finished; their temporary files go.
+  for (const auto& e : fs::directory_iterator(uploads)) {
+    std::error_code ec;
+    if (e.path().filename().string().rfind(".upload-", 0) == 0) fs::remove(e.path(), ec);
+  }
+  api_store_ = open_store(*cfg);
+  api_ = std::make_unique<Api>(*api_store_, [this] { return config(); });
+  http::Limits limits;
+  limits.threads = cfg->http_threads;
+  limits.max_body_bytes = static_cast<std::size_t>(cfg->http_max_body_bytes);
+  if (cfg->max_input_bytes > 0) limits.max_upload_bytes = static_cast<std::uint64_t>(cfg->max_input_bytes);
+  http_ = std::make_unique<http::Server>(http::parse_listen(cfg->http_listen), limits, api_->routes(uploads));
+  http_->start();
+  spdlog::info("HTTP API listening on {}", http_->address());
+}
+
 int Daemon::run() {
   sigset_t set;
   sigemptyset(&set);
@@ -255,6 +277,7 @@ int Daemon::run() {
                cfg->drop_dir, cfg->output_dir, watcher_->inotify_active() ? "on" : "off", store_->schema_version(),
                reaped ? ", " + std::to_string(reaped) + " expired leases reaped" : "");
   pool_->start();
+  start_api();
 
   bool stopping = false;
   while (!stopping) {
@@ -279,6 +302,7 @@ int Daemon::run() {
   }
 
   cfg = config();
+  if (http_) http_->stop();  // requests in progress finish; no new ones
   pool_->stop_claiming();
   auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(cfg->shutdown_grace_seconds);
   bool drained = pool_->wait_idle(deadline);

@@ -1,7 +1,7 @@
 // meshmarkd's main loop: drop-folder watcher, submissions, the worker pool, signals.
 //
 // One thread (the caller of run()) waits in poll() on a signalfd and the inotify descriptor, so
-// signals are handled synchronously: SIGTERM/SIGINT drain (stop claiming, let running jobs finish
+// signals are handled synchronously (the HTTP API, when configured, serves from its own threads): SIGTERM/SIGINT drain (stop claiming, let running jobs finish
 // within shutdown_grace_seconds, else release them to the queue), SIGHUP reloads the config and
 // logs what changed. Dropped files are moved to done/ or failed/ when their job is final.
 #pragma once
@@ -10,6 +10,8 @@
 #include <mutex>
 #include <string>
 
+#include "http/server.h"
+#include "service/api.h"
 #include "service/config.h"
 #include "service/drop_watcher.h"
 #include "service/worker_pool.h"
@@ -43,12 +45,16 @@ class Daemon {
   void handle_drop(const DropItem& item);
   void check_inflight();
   void finalize(const DropItem& item, const store::Job& job);
+  void start_api();  // when http.listen is set: its own store connection, then the server
 
   mutable std::mutex cfg_m_;
   std::shared_ptr<const Config> cfg_;
   std::unique_ptr<store::Store> store_;
   std::unique_ptr<DropWatcher> watcher_;
   std::unique_ptr<WorkerPool> pool_;
+  std::unique_ptr<store::Store> api_store_;
+  std::unique_ptr<Api> api_;
+  std::unique_ptr<http::Server> http_;
   std::map<std::int64_t, DropItem> inflight_;  // job id -> dropped file
   int submitted_ = 0;
 };

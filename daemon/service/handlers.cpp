@@ -76,7 +76,12 @@ std::string str_field(const json& j, const char* key, const store::Job& job, boo
 // input_path resolved (symbolic links and `..` included) and checked to lie under one of the
 // configured input roots, before anything opens it.
 std::string allowed_input_path(const std::string& path, const Config& cfg, const store::Job& job) {
-  const std::string what = "job " + std::to_string(job.id) + ": input_path " + support::printable(path, 200);
+  return resolve_input_path(path, cfg, "job " + std::to_string(job.id) + ": input_path " + support::printable(path, 200));
+}
+
+}  // namespace
+
+std::string resolve_input_path(const std::string& path, const Config& cfg, const std::string& what) {
   if (cfg.input_roots.empty())
     throw PermanentError(what + " refused: no input_roots are configured (config/config-keys.md)");
   if (!fs::path(path).is_absolute()) throw PermanentError(what + " refused: it must be an absolute path");
@@ -91,6 +96,8 @@ std::string allowed_input_path(const std::string& path, const Config& cfg, const
   }
   throw PermanentError(what + " refused: it is not under any of input_roots");
 }
+
+namespace {
 
 // The input's bytes: from the blob store, or (PDM rows) from a path, which is stored first.
 std::vector<std::uint8_t> input_bytes(store::Store& st, const json& p, const store::Job& job, std::string* sha,

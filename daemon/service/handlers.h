@@ -108,6 +108,10 @@ inline constexpr const char* kObjectKey = ";object=";
 // The 3MF object a preparation key names, or "" (the whole part).
 std::string object_of_prepare_key(const std::string& key);
 
+// An input path resolved (symbolic links and `..` included) and checked to lie under one of
+// cfg.input_roots, before anything opens it; PermanentError starting with `what` otherwise.
+std::string resolve_input_path(const std::string& path, const Config& cfg, const std::string& what);
+
 // Submitting: the file's bytes go into the blob store first (so the job does not depend on the
 // file staying where it is), then the job is enqueued with an idempotency key derived from what
 // it is (kind, customer, content hash, name): submitting the same thing twice returns the first

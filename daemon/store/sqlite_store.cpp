@@ -50,6 +50,21 @@ JobState job_state_from_string(const std::string& s) {
   throw StoreError("unknown job state '" + s.substr(0, 40) + "'");
 }
 
+const char* to_string(TokenRole r) {
+  switch (r) {
+    case TokenRole::read: return "read";
+    case TokenRole::submit: return "submit";
+    case TokenRole::admin: return "admin";
+  }
+  return "?";
+}
+
+TokenRole token_role_from_string(const std::string& s) {
+  for (TokenRole r : {TokenRole::read, TokenRole::submit, TokenRole::admin})
+    if (s == to_string(r)) return r;
+  throw StoreError("unknown token role '" + s.substr(0, 40) + "' (read, submit or admin)");
+}
+
 bool job_transition_allowed(JobState from, JobState to) {
   using S = JobState;
   switch (from) {

@@ -219,6 +219,12 @@ class SqliteStore final : public Store {
 
   std::vector<AuditEntry> list_audit(int limit) override;
 
+  // ------------------------------------------------------------ API tokens
+  NewToken create_token(const std::string& name, TokenRole role, const std::string& actor) override;
+  std::vector<ApiToken> list_tokens() override;
+  bool revoke_token(const std::string& name, const std::string& actor) override;
+  std::optional<ApiToken> token_for_secret(const std::string& secret) override;
+
   // ------------------------------------------------------------ queue
   EnqueueResult enqueue(const JobSpec& spec, const std::string& actor) override;
 

@@ -142,6 +142,26 @@ struct AuditEntry : NewAudit {
   Millis at = 0;
 };
 
+// ---------------------------------------------------------------- API tokens
+// Bearer tokens of meshmarkd's HTTP API. Roles, each including the one before: read (status,
+// lists, downloads), submit (uploads, submissions, cancel), admin (retry, everything).
+enum class TokenRole { read, submit, admin };
+const char* to_string(TokenRole r);
+TokenRole token_role_from_string(const std::string& s);  // StoreError if unknown
+
+struct ApiToken {  // what may be shown: the token itself is never stored
+  std::int64_t id = 0;
+  std::string name;  // unique, [A-Za-z0-9._-]{1,64}
+  TokenRole role = TokenRole::read;
+  Millis created_at = 0;
+  std::optional<Millis> revoked_at;
+};
+
+struct NewToken {
+  ApiToken token;
+  std::string secret;  // "mmt_" + 64 hex digits; shown once, only its SHA-256 is kept
+};
+
 // ---------------------------------------------------------------- jobs
 enum class JobState { available, running, completed, retryable, discarded, cancelled };
 const char* to_string(JobState s);
@@ -304,6 +324,14 @@ class Store {
   // Audit log.
   virtual std::int64_t append_audit(const NewAudit& a) = 0;
   virtual std::vector<AuditEntry> list_audit(int limit = 1000) = 0;
+
+  // API tokens. create_token refuses a name in use (revoked ones included); revoke_token returns
+  // false for an unknown or already revoked name. token_for_secret: the live token with that
+  // secret, compared by its SHA-256.
+  virtual NewToken create_token(const std::string& name, TokenRole role, const std::string& actor = "cli") = 0;
+  virtual std::vector<ApiToken> list_tokens() = 0;
+  virtual bool revoke_token(const std::string& name, const std::string& actor = "cli") = 0;
+  virtual std::optional<ApiToken> token_for_secret(const std::string& secret) = 0;
 
   // Queue.
   virtual EnqueueResult enqueue(const JobSpec& spec, const std::string& actor = "cli") = 0;

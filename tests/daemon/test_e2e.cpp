@@ -947,3 +947,85 @@ TEST_F(E2E, AFailedProtectLeavesNoAsset) {
 }
 
 }  // namespace
+
+namespace {
+
+// A command's standard output (stderr passed through), for curl and meshmark --json.
+std::string output_of_command(const std::string& cmd) {
+  std::string out;
+  FILE* p = ::popen(cmd.c_str(), "r");
+  if (!p) return out;
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+  ::pclose(p);
+  return out;
+}
+
+// A PDM client's whole round trip over the HTTP API of a running meshmarkd, with curl on its Unix
+// socket: a token from `meshmark token create`, the part uploaded, a protect job submitted twice
+// with one Idempotency-Key (one job), polled to success, the copy downloaded and checked against
+// its ETag, then the copy submitted for detection and its verdict read: the customer is named.
+TEST_F(E2E, AnApiClientProtectsDownloadsAndTracesAPart) {
+  MM_REQUIRE_SHARED_MESHES();
+  const std::string sock = (dir / "api.sock").string();
+  write_config({{"output_format", "stl"}, {"watermark", {{"message_bits", 16}}}, {"http", {{"listen", "unix:" + sock}}}});
+  const json created = json::parse(output_of_command(std::string(MESHMARK_EXE) + " token create pdm --role submit --json --home " +
+                                                     home.string()));
+  const std::string token = created.value("token", "");
+  ASSERT_EQ(token.size(), 68u) << created.dump();
+  Daemon d = start();
+  ASSERT_TRUE(wait_for([&] { return fs::exists(sock); }, 20s)) << log();
+  const std::string curl = "curl -s --unix-socket " + sock + " -H 'Authorization: Bearer " + token + "' ";
+  const auto get = [&](const std::string& path) { return json::parse(output_of_command(curl + "http://api" + path), nullptr, false); };
+  const auto wait_job = [&](long long id) {
+    json j;
+    wait_for([&] {
+      j = get("/v1/jobs/" + std::to_string(id));
+      return j.value("state", "") == "succeeded" || j.value("state", "") == "failed";
+    }, 180s);
+    return j;
+  };
+
+  const json part = json::parse(output_of_command(curl + "--data-binary @" + mm::test::shared_mesh("abc7.stl") +
+                                                  " 'http://api/v1/parts?name=abc7.stl'"));
+  ASSERT_EQ(part.value("sha256", ""), mm::support::sha256_file_hex(mm::test::shared_mesh("abc7.stl"))) << part.dump();
+  const std::string body = json{{"part", {{"sha256", part["sha256"]}, {"name", "abc7.stl"}}}, {"customers", {"beta"}}}.dump();
+  const std::string post = curl + "-H 'Idempotency-Key: \"nightly-1\"' -H 'Content-Type: application/json' -d '" + body + "' ";
+  const json first = json::parse(output_of_command(post + "http://api/v1/jobs/protect"));
+  const json again = json::parse(output_of_command(post + "http://api/v1/jobs/protect"));
+  ASSERT_EQ(first["jobs"].size(), 1u) << first.dump();
+  EXPECT_EQ(again["jobs"][0]["id"], first["jobs"][0]["id"]);
+  const long long id = first["jobs"][0]["id"].get<long long>();
+  const json done = wait_job(id);
+  ASSERT_EQ(done.value("state", ""), "succeeded") << done.dump() << log();
+  EXPECT_EQ(done["customer"], "beta");
+
+  const fs::path copy = dir / "downloaded.stl";
+  const std::string headers = output_of_command(curl + "-D - -o " + copy.string() + " http://api/v1/jobs/" + std::to_string(id) + "/copy");
+  const std::string sha = mm::support::sha256_file_hex(copy.string());
+  EXPECT_EQ(sha, done["result"]["output_sha256"]);
+  EXPECT_NE(headers.find("ETag: \"" + sha + "\""), std::string::npos) << headers;
+  EXPECT_EQ(output_of_command(curl + "-o /dev/null -w '%{http_code}' -H 'If-None-Match: \"" + sha + "\"' http://api/v1/jobs/" +
+                              std::to_string(id) + "/copy"),
+            "304");
+
+  const json leak = json::parse(output_of_command(curl + "--data-binary @" + copy.string() + " 'http://api/v1/parts?name=leak.stl'"));
+  const json det = json::parse(output_of_command(curl + "-H 'Content-Type: application/json' -d '" +
+                                                 json{{"part", {{"sha256", leak["sha256"]}, {"name", "leak.stl"}}}}.dump() +
+                                                 "' http://api/v1/jobs/detect"));
+  const long long det_id = det["jobs"][0]["id"].get<long long>();
+  ASSERT_EQ(wait_job(det_id).value("state", ""), "succeeded") << log();
+  const json verdict = get("/v1/jobs/" + std::to_string(det_id) + "/detection");
+  EXPECT_EQ(verdict["verdict"], "attributed") << verdict.dump().substr(0, 600);
+  EXPECT_EQ(verdict["customer"], "beta");
+  EXPECT_LT(verdict["p_value"].get<double>(), 1e-9);
+
+  ::kill(d.pid, SIGTERM);
+  ASSERT_TRUE(d.wait_exit(60s));
+  EXPECT_TRUE(WIFEXITED(d.status) && WEXITSTATUS(d.status) == 0);
+  EXPECT_FALSE(fs::exists(sock)) << "the socket is removed at exit";
+  EXPECT_EQ(log().find(token.substr(4)), std::string::npos) << "the token never reaches the log";
+}
+
+}  // namespace

@@ -98,6 +98,30 @@ TEST(Cli, CustomersAddListRotate) {
   EXPECT_NE(human.find("key v2"), std::string::npos) << human;
 }
 
+TEST(Cli, TokensCreateListRevokeAndTheTokenIsShownOnce) {
+  CliHome h;
+  h.j({"init"});
+  auto t = h.j({"token", "create", "pdm", "--role", "submit"});
+  const std::string secret = t["token"].get<std::string>();
+  EXPECT_EQ(secret.rfind("mmt_", 0), 0u);
+  EXPECT_EQ(t["role"], "submit");
+  auto list = h.j({"token", "list"});
+  ASSERT_EQ(list.size(), 1u);
+  EXPECT_EQ(list[0]["name"], "pdm");
+  EXPECT_TRUE(list[0]["revoked_at"].is_null());
+  EXPECT_EQ(list.dump().find(secret.substr(4)), std::string::npos) << "list never shows a token";
+  EXPECT_EQ(run({"token", "list", "--home", h.home}).find(secret.substr(4)), std::string::npos);
+  std::string msg;
+  EXPECT_EQ(exit_code_of({"token", "create", "pdm", "--home", h.home}, &msg), 1);
+  EXPECT_NE(msg.find("already exists"), std::string::npos) << msg;
+  EXPECT_EQ(h.j({"token", "revoke", "pdm"})["revoked"], true);
+  EXPECT_FALSE(h.j({"token", "list"})[0]["revoked_at"].is_null());
+  EXPECT_EQ(exit_code_of({"token", "revoke", "pdm", "--home", h.home}, &msg), 1);
+  EXPECT_NE(msg.find("no live token"), std::string::npos) << msg;
+  EXPECT_THROW(run({"token", "create", "x", "--role", "root", "--home", h.home}), CLI::ParseError);
+  EXPECT_FALSE(store::open_home(store::resolve_home(h.home), false)->token_for_secret(secret).has_value());
+}
+
 TEST(Cli, RefusesAMasterKeyOthersCanRead) {
   CliHome h;
   h.j({"init"});

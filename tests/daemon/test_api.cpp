@@ -1,0 +1,296 @@
+// meshmarkd's HTTP API over a real store and server: tokens and roles, uploads, submissions with
+// Idempotency-Key semantics, job status, lists, cancel and retry, problem details.
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "http/server.h"
+#include "service/api.h"
+#include "store/store.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace mm;
+using nlohmann::json;
+
+struct Reply {
+  int status = 0;
+  std::string head, body;
+  json j;
+  std::string header(const std::string& name) const {
+    const auto at = head.find("\r\n" + name + ": ");
+    if (at == std::string::npos) return "";
+    const auto start = at + name.size() + 4;
+    return head.substr(start, head.find("\r\n", start) - start);
+  }
+};
+
+Reply call(int port, const std::string& method, const std::string& target, const std::string& token,
+           const std::string& body = "", const std::string& extra_headers = "") {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in sa{};
+  sa.sin_family = AF_INET;
+  sa.sin_port = htons(static_cast<uint16_t>(port));
+  sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&sa), sizeof sa) != 0) return {};
+  std::string req = method + " " + target + " HTTP/1.1\r\nHost: t\r\nConnection: close\r\n";
+  if (!token.empty()) req += "Authorization: Bearer " + token + "\r\n";
+  req += extra_headers;
+  if (!body.empty() || method == "POST") req += "Content-Length: " + std::to_string(body.size()) + "\r\n";
+  req += "\r\n" + body;
+  ::send(fd, req.data(), req.size(), MSG_NOSIGNAL);
+  std::string out;
+  char buf[8192];
+  for (;;) {
+    struct pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 5000) <= 0) break;
+    const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+    if (n <= 0) break;
+    out.append(buf, static_cast<std::size_t>(n));
+  }
+  ::close(fd);
+  Reply r;
+  const auto split = out.find("\r\n\r\n");
+  if (out.size() < 12 || split == std::string::npos) return r;
+  r.status = std::stoi(out.substr(9, 3));
+  r.head = out.substr(0, split + 2);
+  r.body = out.substr(split + 4);
+  r.j = json::parse(r.body, nullptr, false);
+  return r;
+}
+
+struct ApiTest : ::testing::Test {
+  fs::path dir;
+  std::unique_ptr<store::Store> st;
+  std::shared_ptr<service::Config> cfg = std::make_shared<service::Config>();
+  std::unique_ptr<service::Api> api;
+  std::unique_ptr<http::Server> server;
+  std::string reader, submitter, admin;
+
+  void SetUp() override {
+    dir = fs::temp_directory_path() / ("mm-api-" + std::to_string(::getpid()) + "-" +
+                                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir);
+    fs::create_directories(dir / "uploads");
+    fs::create_directories(dir / "in");
+    store::StoreOptions o;
+    o.db_path = (dir / "m.db").string();
+    o.master_key = keys::SecretKey::random();
+    st = store::open_sqlite_store(o);
+    st->add_customer("alice");
+    st->add_customer("bob");
+    reader = st->create_token("dashboard", store::TokenRole::read).secret;
+    submitter = st->create_token("pdm", store::TokenRole::submit).secret;
+    admin = st->create_token("ops", store::TokenRole::admin).secret;
+    cfg->home = dir.string();
+    cfg->input_roots = {(dir / "in").string()};
+    cfg->max_attempts = 3;
+    api = std::make_unique<service::Api>(*st, [this] { return std::shared_ptr<const service::Config>(cfg); });
+    http::Limits limits;
+    limits.max_upload_bytes = 100000;
+    server = std::make_unique<http::Server>(http::parse_listen("127.0.0.1:0"), limits, api->routes((dir / "uploads").string()));
+    server->start();
+  }
+  void TearDown() override {
+    server.reset();
+    api.reset();
+    st.reset();
+    fs::remove_all(dir);
+  }
+  int port() const { return server->port(); }
+  std::string upload(const std::string& bytes, const std::string& name = "part.stl") {
+    const Reply r = call(port(), "POST", "/v1/parts?name=" + name, submitter, bytes);
+    EXPECT_EQ(r.status, 201) << r.body;
+    return r.j.value("sha256", "");
+  }
+};
+
+TEST_F(ApiTest, HealthNeedsNoTokenAndEverythingElseDoes) {
+  EXPECT_EQ(call(port(), "GET", "/healthz", "").status, 200);
+  EXPECT_EQ(call(port(), "GET", "/readyz", "").status, 200);
+  const Reply none = call(port(), "GET", "/v1/jobs", "");
+  EXPECT_EQ(none.status, 401);
+  EXPECT_EQ(none.header("WWW-Authenticate"), "Bearer realm=\"meshmark\"");
+  EXPECT_EQ(none.header("Content-Type"), "application/problem+json");
+  EXPECT_EQ(none.j["status"], 401);
+  EXPECT_EQ(call(port(), "GET", "/v1/jobs", "mmt_" + std::string(64, '0')).status, 401);
+  EXPECT_EQ(call(port(), "GET", "/v1/jobs", reader).status, 200);
+}
+
+TEST_F(ApiTest, ARevokedTokenIsRefused) {
+  EXPECT_EQ(call(port(), "GET", "/v1/jobs", reader).status, 200);
+  ASSERT_TRUE(st->revoke_token("dashboard"));
+  EXPECT_EQ(call(port(), "GET", "/v1/jobs", reader).status, 401);
+  EXPECT_FALSE(st->revoke_token("dashboard"));
+}
+
+TEST_F(ApiTest, RolesAreChecked) {
+  const Reply r = call(port(), "POST", "/v1/parts?name=a.stl", reader, "solid x\nendsolid x\n");
+  EXPECT_EQ(r.status, 403);
+  EXPECT_NE(r.j.value("detail", "").find("needs submit"), std::string::npos) << r.body;
+  const std::string sha = upload("solid a\nendsolid a\n");
+  const Reply job = call(port(), "POST", "/v1/jobs/detect", submitter, json{{"part", {{"sha256", sha}, {"name", "a.stl"}}}}.dump());
+  ASSERT_EQ(job.status, 202) << job.body;
+  const std::string id = std::to_string(job.j["jobs"][0]["id"].get<int>());
+  ASSERT_EQ(call(port(), "POST", "/v1/jobs/" + id + "/cancel", submitter).status, 200);
+  EXPECT_EQ(call(port(), "POST", "/v1/jobs/" + id + "/retry", submitter).status, 403);
+  EXPECT_EQ(call(port(), "POST", "/v1/jobs/" + id + "/retry", admin).j["state"], "queued");
+}
+
+TEST_F(ApiTest, UploadsArePutInTheBlobStoreByTheirHash) {
+  const std::string bytes = "solid u\nendsolid u\n";
+  const std::string sha = upload(bytes);
+  ASSERT_EQ(sha.size(), 64u);
+  EXPECT_TRUE(st->blobs().contains(sha));
+  EXPECT_EQ(st->blobs().size(sha), bytes.size());
+  EXPECT_EQ(call(port(), "GET", "/v1/parts/" + sha, reader).j["size"], bytes.size());
+  EXPECT_EQ(call(port(), "GET", "/v1/parts/" + std::string(64, 'a'), reader).status, 404);
+  const Reply big = call(port(), "POST", "/v1/parts?name=big.stl", submitter, std::string(100001, 'x'));
+  EXPECT_EQ(big.status, 413);
+  const Reply noname = call(port(), "POST", "/v1/parts", submitter, bytes);
+  EXPECT_EQ(noname.status, 422);
+  EXPECT_EQ(noname.j["field"], "name");
+  EXPECT_EQ(call(port(), "POST", "/v1/parts?name=..%2Fescape.stl", submitter, bytes).j["field"], "name");
+  EXPECT_TRUE(fs::is_empty(dir / "uploads")) << "no upload is left half-written";
+}
+
+TEST_F(ApiTest, ProtectMakesOneJobPerCustomerAndAnIdempotencyKeyReplaysThem) {
+  const std::string sha = upload("solid p\nendsolid p\n");
+  const std::string body = json{{"part", {{"sha256", sha}, {"name", "p.stl"}}}, {"customers", {"alice", "bob"}}}.dump();
+  const std::string key = "Idempotency-Key: \"order-17\"\r\nContent-Type: application/json\r\n";
+  const Reply first = call(port(), "POST", "/v1/jobs/protect", submitter, body, key);
+  ASSERT_EQ(first.status, 202) << first.body;
+  ASSERT_EQ(first.j["jobs"].size(), 2u);
+  EXPECT_EQ(first.j["jobs"][0]["customer"], "alice");
+  EXPECT_EQ(first.j["jobs"][1]["customer"], "bob");
+  EXPECT_EQ(first.j["jobs"][0]["state"], "queued");
+  EXPECT_EQ(first.header("Location"), "/v1/jobs/" + std::to_string(first.j["jobs"][0]["id"].get<int>()));
+  EXPECT_FALSE(first.header("Retry-After").empty());
+  EXPECT_EQ(first.j["jobs"][0]["created"], true);
+
+  const Reply again = call(port(), "POST", "/v1/jobs/protect", submitter, body, key);
+  ASSERT_EQ(again.status, 202);
+  EXPECT_EQ(again.j["jobs"][0]["id"], first.j["jobs"][0]["id"]);
+  EXPECT_EQ(again.j["jobs"][1]["id"], first.j["jobs"][1]["id"]);
+  EXPECT_EQ(again.j["jobs"][0]["created"], false);
+  EXPECT_EQ(again.header("Idempotent-Replayed"), "true");
+  EXPECT_EQ(st->counts().available, 2);
+
+  const std::string other = json{{"part", {{"sha256", sha}, {"name", "p.stl"}}}, {"customers", {"alice"}}, {"priority", 5}}.dump();
+  const Reply misuse = call(port(), "POST", "/v1/jobs/protect", submitter, other, key);
+  EXPECT_EQ(misuse.status, 422) << misuse.body;
+  EXPECT_EQ(misuse.j["field"], "Idempotency-Key");
+  EXPECT_EQ(st->counts().available, 2);
+
+  // Another client's same key is its own.
+  const Reply admins = call(port(), "POST", "/v1/jobs/protect", admin, body, key);
+  EXPECT_EQ(admins.status, 202);
+  EXPECT_NE(admins.j["jobs"][0]["id"], first.j["jobs"][0]["id"]);
+}
+
+TEST_F(ApiTest, ASubmissionWithoutAKeyFindsTheSameJobByWhatItIs) {
+  const std::string sha = upload("solid q\nendsolid q\n");
+  const std::string body = json{{"part", {{"sha256", sha}, {"name", "q.stl"}}}}.dump();
+  const Reply a = call(port(), "POST", "/v1/jobs/detect", submitter, body);
+  const Reply b = call(port(), "POST", "/v1/jobs/detect", submitter, body);
+  ASSERT_EQ(a.status, 202);
+  EXPECT_EQ(a.j["jobs"][0]["id"], b.j["jobs"][0]["id"]);
+  EXPECT_EQ(st->counts().available, 1);
+}
+
+TEST_F(ApiTest, SubmissionsNameTheFieldThatIsWrong) {
+  const std::string sha = upload("solid r\nendsolid r\n");
+  const auto field_of = [&](const json& body, const std::string& kind = "protect") {
+    const Reply r = call(port(), "POST", "/v1/jobs/" + kind, submitter, body.dump());
+    EXPECT_EQ(r.header("Content-Type"), "application/problem+json") << r.body;
+    return r.j.value("field", "(" + std::to_string(r.status) + ")");
+  };
+  const json part{{"sha256", sha}, {"name", "r.stl"}};
+  EXPECT_EQ(field_of({{"customers", {"alice"}}}), "part");
+  EXPECT_EQ(field_of({{"part", part}, {"customers", {"alice", "mallory"}}}), "customers[1]");
+  EXPECT_EQ(field_of({{"part", part}, {"customers", json::array()}}), "customers");
+  EXPECT_EQ(field_of({{"part", {{"sha256", std::string(64, 'b')}, {"name", "r.stl"}}}, {"customers", {"alice"}}}), "part.sha256");
+  EXPECT_EQ(field_of({{"part", {{"sha256", sha}}}, {"customers", {"alice"}}}), "part.name");
+  EXPECT_EQ(field_of({{"part", {{"sha256", sha}, {"name", "noext"}}}, {"customers", {"alice"}}}), "part.name");
+  EXPECT_EQ(field_of({{"part", part}, {"customers", {"alice"}}, {"output_format", "exe"}}), "output_format");
+  EXPECT_EQ(field_of({{"part", part}, {"customers", {"alice"}}, {"colour", "red"}}), "colour");
+  EXPECT_EQ(field_of({{"part", part}, {"customers", {"alice"}}}, "detect"), "customers");
+  EXPECT_EQ(field_of({{"part", {{"path", "/etc/passwd"}}}}, "detect"), "part.path");
+  EXPECT_EQ(field_of({{"part", {{"path", (dir / "in" / ".." / "m.db").string()}}}}, "detect"), "part.path");
+  const Reply notjson = call(port(), "POST", "/v1/jobs/detect", submitter, "{part", "Content-Type: application/json\r\n");
+  EXPECT_EQ(notjson.status, 400);
+  EXPECT_EQ(st->counts().available, 0) << "nothing was enqueued by a refused request";
+}
+
+TEST_F(ApiTest, APathUnderTheInputRootsIsStoredAtSubmission) {
+  std::ofstream(dir / "in" / "s.stl") << "solid s\nendsolid s\n";
+  const Reply r = call(port(), "POST", "/v1/jobs/detect", submitter, json{{"part", {{"path", (dir / "in" / "s.stl").string()}}}}.dump());
+  ASSERT_EQ(r.status, 202) << r.body;
+  EXPECT_EQ(r.j["jobs"][0]["name"], "s.stl");
+  const auto job = st->get_job(r.j["jobs"][0]["id"].get<int>());
+  const json p = json::parse(job->payload_json);
+  EXPECT_TRUE(st->blobs().contains(p["input_sha256"].get<std::string>()));
+}
+
+TEST_F(ApiTest, JobsShowStateErrorsAndPageByCursor) {
+  std::vector<int> ids;
+  for (int k = 0; k < 5; ++k) {
+    const std::string sha = upload("solid " + std::to_string(k) + "\nendsolid\n", "n" + std::to_string(k % 2) + ".stl");
+    const Reply r = call(port(), "POST", "/v1/jobs/detect", submitter,
+                         json{{"part", {{"sha256", sha}, {"name", "n" + std::to_string(k % 2) + ".stl"}}}}.dump());
+    ids.push_back(r.j["jobs"][0]["id"].get<int>());
+  }
+  // A worker fails the oldest job for good: the API shows it failed, with its reason.
+  const auto claimed = st->claim("w1", 60000);
+  ASSERT_TRUE(claimed);
+  st->fail(claimed->id, "w1", "n0.stl: not a mesh", false);
+  const Reply failed = call(port(), "GET", "/v1/jobs/" + std::to_string(claimed->id), reader);
+  EXPECT_EQ(failed.j["state"], "failed");
+  EXPECT_EQ(failed.j["error"], "n0.stl: not a mesh");
+  EXPECT_EQ(failed.j["attempts"], 1);
+
+  const Reply page1 = call(port(), "GET", "/v1/jobs?limit=2", reader);
+  ASSERT_EQ(page1.j["jobs"].size(), 2u);
+  EXPECT_EQ(page1.j["jobs"][0]["id"], ids[4]);
+  const std::string cursor = page1.j["next_cursor"].get<std::string>();
+  const Reply page2 = call(port(), "GET", "/v1/jobs?limit=2&cursor=" + cursor, reader);
+  EXPECT_EQ(page2.j["jobs"][0]["id"], ids[2]);
+  const Reply page3 = call(port(), "GET", "/v1/jobs?limit=2&cursor=" + page2.j["next_cursor"].get<std::string>(), reader);
+  EXPECT_EQ(page3.j["jobs"].size(), 1u);
+  EXPECT_TRUE(page3.j["next_cursor"].is_null());
+
+  EXPECT_EQ(call(port(), "GET", "/v1/jobs?state=failed", reader).j["jobs"].size(), 1u);
+  EXPECT_EQ(call(port(), "GET", "/v1/jobs?state=queued&name=n1.stl", reader).j["jobs"].size(), 2u);
+  EXPECT_EQ(call(port(), "GET", "/v1/jobs?state=done", reader).j["field"], "state");
+  EXPECT_EQ(call(port(), "GET", "/v1/jobs/999999", reader).status, 404);
+  EXPECT_EQ(call(port(), "GET", "/v1/jobs/abc", reader).status, 404);
+  EXPECT_EQ(call(port(), "DELETE", "/v1/jobs/1", reader).status, 405);
+  EXPECT_EQ(call(port(), "POST", "/v1/jobs/" + std::to_string(claimed->id) + "/cancel", submitter).status, 409);
+  EXPECT_EQ(call(port(), "GET", "/v1/jobs/" + std::to_string(ids[0]) + "/copy", reader).status, 404)
+      << "a detect job has no copy";
+  EXPECT_EQ(call(port(), "GET", "/v1/jobs/" + std::to_string(ids[1]) + "/detection", reader).status, 409)
+      << "a queued detection has no verdict yet";
+}
+
+TEST_F(ApiTest, TokensAreStoredHashedOnly) {
+  const auto t = st->create_token("another", store::TokenRole::submit);
+  EXPECT_EQ(t.secret.rfind("mmt_", 0), 0u);
+  EXPECT_EQ(t.secret.size(), 68u);
+  std::ifstream db(dir / "m.db", std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(db)), {});
+  EXPECT_EQ(bytes.find(t.secret.substr(4)), std::string::npos);
+  EXPECT_THROW(st->create_token("another", store::TokenRole::read), store::StoreError);
+  EXPECT_THROW(st->create_token("../x", store::TokenRole::read), store::StoreError);
+  EXPECT_EQ(st->list_tokens().size(), 4u);
+}
+
+}  // namespace
