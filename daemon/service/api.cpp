@@ -8,6 +8,7 @@
 #include <spdlog/spdlog.h>
 
 #include "meshio/read_mesh.h"
+#include "service/build_info.h"
 #include "service/handlers.h"
 #include "support/printable.h"
 
@@ -176,12 +177,6 @@ const char* api_state(store::JobState s) {
   return "?";
 }
 
-struct Api::Caller {
-  std::string name;
-  store::TokenRole role = store::TokenRole::read;
-  bool allows(store::TokenRole needed) const { return static_cast<int>(role) >= static_cast<int>(needed); }
-};
-
 Api::Api(store::Store& st, std::function<std::shared_ptr<const Config>()> config) : st_(st), config_(std::move(config)) {}
 
 http::Routes Api::routes(const std::string& upload_dir) {
@@ -192,100 +187,182 @@ http::Routes Api::routes(const std::string& upload_dir) {
   return r;
 }
 
+namespace {
+
+// A path against a template ("/v1/jobs/{id}"): the values of its {parameters}, in order.
+std::optional<std::vector<std::string>> match(const std::string& pattern, const std::vector<std::string>& seg) {
+  const auto pat = segments(pattern);
+  if (pat.size() != seg.size()) return std::nullopt;
+  std::vector<std::string> params;
+  for (std::size_t i = 0; i < pat.size(); ++i) {
+    if (pat[i].size() > 2 && pat[i].front() == '{') params.push_back(seg[i]);
+    else if (pat[i] != seg[i]) return std::nullopt;
+  }
+  return params;
+}
+
+}  // namespace
+
+// Every route; docs/openapi.json documents exactly these (tests/daemon/test_api.cpp checks it).
+const std::vector<Api::Route>& Api::route_table() {
+  using R = store::TokenRole;
+  static const std::vector<Route> table = {
+      {"GET", "/healthz", std::nullopt, [](Api&, Request&, const Caller&, const Params&) { return reply(200, {{"status", "ok"}}); }},
+      {"GET", "/readyz", std::nullopt, [](Api& a, Request&, const Caller&, const Params&) { return a.ready(); }},
+      {"GET", "/metrics", R::read, [](Api& a, Request&, const Caller&, const Params&) { return a.metrics(); }},
+      {"POST", "/v1/parts", R::submit, [](Api& a, Request& q, const Caller&, const Params&) { return a.upload_part(q); }},
+      {"GET", "/v1/parts/{sha256}", R::read, [](Api& a, Request&, const Caller&, const Params& p) { return a.part(p[0]); }},
+      {"POST", "/v1/jobs/protect", R::submit, [](Api& a, Request& q, const Caller& w, const Params&) { return a.submit(q, w, "protect"); }},
+      {"POST", "/v1/jobs/detect", R::submit, [](Api& a, Request& q, const Caller& w, const Params&) { return a.submit(q, w, "detect"); }},
+      {"GET", "/v1/jobs", R::read, [](Api& a, Request& q, const Caller&, const Params&) { return a.jobs(q); }},
+      {"GET", "/v1/jobs/{id}", R::read, [](Api& a, Request&, const Caller&, const Params& p) { return a.job(p[0]); }},
+      {"POST", "/v1/jobs/{id}/cancel", R::submit,
+       [](Api& a, Request&, const Caller& w, const Params& p) { return a.job_action(p[0], "cancel", w); }},
+      {"POST", "/v1/jobs/{id}/retry", R::admin,
+       [](Api& a, Request&, const Caller& w, const Params& p) { return a.job_action(p[0], "retry", w); }},
+      {"GET", "/v1/jobs/{id}/copy", R::read, [](Api& a, Request& q, const Caller&, const Params& p) { return a.job_file(p[0], "copy", q); }},
+      {"GET", "/v1/jobs/{id}/stream", R::read,
+       [](Api& a, Request& q, const Caller&, const Params& p) { return a.job_file(p[0], "stream", q); }},
+      {"GET", "/v1/jobs/{id}/detection", R::read, [](Api& a, Request&, const Caller&, const Params& p) { return a.detection_of(p[0]); }},
+  };
+  return table;
+}
+
 Response Api::handle(Request& req) {
-  if (req.path == "/healthz" && (req.method == "GET" || req.method == "HEAD")) return reply(200, {{"status", "ok"}});
-  if (req.path == "/readyz" && (req.method == "GET" || req.method == "HEAD")) {
-    try {
-      st_.counts();
-      return reply(200, {{"status", "ready"}});
-    } catch (const std::exception& e) {
-      return fail(503, std::string("the store does not answer: ") + e.what());
+  const auto seg = segments(req.path);
+  const Route* found = nullptr;
+  std::vector<std::string> params;
+  std::string allow;
+  for (const auto& r : route_table()) {
+    auto p = match(r.path, seg);
+    if (!p) continue;
+    allow += std::string(allow.empty() ? "" : ", ") + r.method + (std::string(r.method) == "GET" ? ", HEAD" : "");
+    if (req.method == r.method || (req.method == "HEAD" && std::string(r.method) == "GET")) {
+      found = &r;
+      params = std::move(*p);
     }
   }
-  // Bearer tokens (RFC 6750); the token itself is never logged or echoed.
-  const std::string auth = req.header("authorization");
-  const auto unauthorized = [](const std::string& detail) {
-    Response r = fail(401, detail);
-    r.headers.emplace_back("WWW-Authenticate", "Bearer realm=\"meshmark\"");
+  if (!found && allow.empty()) return fail(404, "no such route: " + support::printable(req.path, 200));
+  if (!found) {
+    Response r = fail(405, "allowed here: " + allow);
+    r.headers.emplace_back("Allow", allow);
     return r;
-  };
-  if (auth.size() < 8 || !std::equal(auth.begin(), auth.begin() + 7, "bearer ", [](char a, char b) {
-        return std::tolower(static_cast<unsigned char>(a)) == b;
-      }))
-    return unauthorized("send an API token as 'Authorization: Bearer <token>' (meshmark token create)");
-  std::string secret = auth.substr(7);
-  secret.erase(0, secret.find_first_not_of(' '));
-  const auto token = secret.size() <= 200 ? st_.token_for_secret(secret) : std::nullopt;
-  if (!token) return unauthorized("the token is unknown or revoked");
+  }
+  Caller who;
+  if (found->role) {
+    // Bearer tokens (RFC 6750); the token itself is never logged or echoed.
+    const std::string auth = req.header("authorization");
+    const auto unauthorized = [](const std::string& detail) {
+      Response r = fail(401, detail);
+      r.headers.emplace_back("WWW-Authenticate", "Bearer realm=\"meshmark\"");
+      return r;
+    };
+    if (auth.size() < 8 || !std::equal(auth.begin(), auth.begin() + 7, "bearer ", [](char a, char b) {
+          return std::tolower(static_cast<unsigned char>(a)) == b;
+        }))
+      return unauthorized("send an API token as 'Authorization: Bearer <token>' (meshmark token create)");
+    std::string secret = auth.substr(7);
+    secret.erase(0, secret.find_first_not_of(' '));
+    const auto token = secret.size() <= 200 ? st_.token_for_secret(secret) : std::nullopt;
+    if (!token) return unauthorized("the token is unknown or revoked");
+    who = Caller{token->name, token->role};
+    if (!who.allows(*found->role))
+      return fail(403, "token '" + who.name + "' has role " + store::to_string(who.role) + "; this needs " +
+                           store::to_string(*found->role));
+  }
   try {
-    return route(req, Caller{token->name, token->role});
+    return found->fn(*this, req, who, params);
   } catch (const store::StoreError& e) {
-    spdlog::error("api: {} {}: {}", req.method, req.path, e.what());
+    spdlog::error("api: {} {}: {}", req.method, support::printable(req.path, 200), e.what());
     return fail(503, "the store refused the request; retry later");
   }
 }
 
-Response Api::route(Request& req, const Caller& who) {
-  const auto seg = segments(req.path);
-  const bool get = req.method == "GET" || req.method == "HEAD", post = req.method == "POST";
-  const auto need = [&](store::TokenRole role) -> std::optional<Response> {
-    if (who.allows(role)) return std::nullopt;
-    return fail(403, "token '" + who.name + "' has role " + store::to_string(who.role) + "; this needs " +
-                         store::to_string(role));
-  };
-  const auto not_allowed = [](const char* allow) {
-    Response r = fail(405, std::string("allowed here: ") + allow);
-    r.headers.emplace_back("Allow", allow);
-    return r;
-  };
-  using R = store::TokenRole;
-  if (seg.empty() || seg[0] != "v1") return fail(404, "no such route: " + support::printable(req.path, 200));
-  if (seg.size() == 2 && seg[1] == "parts") {
-    if (!post) return not_allowed("POST");
-    if (auto r = need(R::submit)) return *r;
-    return upload_part(req);
+Response Api::ready() {
+  try {
+    st_.counts();
+    return reply(200, {{"status", "ready"}});
+  } catch (const std::exception& e) {
+    return fail(503, std::string("the store does not answer: ") + e.what());
   }
-  if (seg.size() == 3 && seg[1] == "parts") {
-    if (!get) return not_allowed("GET, HEAD");
-    if (auto r = need(R::read)) return *r;
-    if (!store::is_sha256_hex(seg[2]) || !st_.blobs().contains(seg[2])) return fail(404, "no part with this SHA-256");
-    return reply(200, {{"sha256", seg[2]}, {"size", st_.blobs().size(seg[2])}});
-  }
-  if (seg.size() == 2 && seg[1] == "jobs") {
-    if (!get) return not_allowed("GET, HEAD");
-    if (auto r = need(R::read)) return *r;
-    return jobs(req);
-  }
-  if (seg.size() == 3 && seg[1] == "jobs" && (seg[2] == "protect" || seg[2] == "detect")) {
-    if (!post) return not_allowed("POST");
-    if (auto r = need(R::submit)) return *r;
-    return submit(req, who, seg[2]);
-  }
-  if (seg.size() >= 3 && seg[1] == "jobs") {
-    const auto id = parse_id(seg[2]);
-    if (!id) return fail(404, "a job id is a positive integer");
-    if (seg.size() == 3) {
-      if (!get) return not_allowed("GET, HEAD");
-      if (auto r = need(R::read)) return *r;
-      return job(*id);
+}
+
+Response Api::part(const std::string& sha) {
+  if (!store::is_sha256_hex(sha) || !st_.blobs().contains(sha)) return fail(404, "no part with this SHA-256");
+  return reply(200, {{"sha256", sha}, {"size", st_.blobs().size(sha)}});
+}
+
+namespace {
+
+// A Prometheus label value, escaped as the text format 0.0.4 asks.
+std::string label(const std::string& v) {
+  std::string out;
+  for (char c : v) {
+    if (c == '\\' || c == '"') out += '\\';
+    if (c == '\n') {
+      out += "\\n";
+      continue;
     }
-    if (seg.size() == 4 && (seg[3] == "cancel" || seg[3] == "retry")) {
-      if (!post) return not_allowed("POST");
-      if (auto r = need(seg[3] == "cancel" ? R::submit : R::admin)) return *r;
-      return job_action(*id, seg[3], who);
-    }
-    if (seg.size() == 4 && (seg[3] == "copy" || seg[3] == "stream")) {
-      if (!get) return not_allowed("GET, HEAD");
-      if (auto r = need(R::read)) return *r;
-      return job_file(*id, seg[3], req);
-    }
-    if (seg.size() == 4 && seg[3] == "detection") {
-      if (!get) return not_allowed("GET, HEAD");
-      if (auto r = need(R::read)) return *r;
-      return detection_of(*id);
-    }
+    out += c;
   }
-  return fail(404, "no such route: " + support::printable(req.path, 200));
+  return out;
+}
+
+std::string number(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+// Seconds from a job's last claim to its completion.
+const std::vector<double> kDurationBuckets = {0.1, 0.5, 1, 2, 5, 10, 30, 60, 300, 1800};
+
+}  // namespace
+
+Response Api::metrics() {
+  const auto m = st_.metrics(kDurationBuckets);
+  std::string t;
+  t += "# HELP meshmark_build_info The running meshmarkd: release version and the SHA-256 of its executable.\n";
+  t += "# TYPE meshmark_build_info gauge\n";
+  t += "meshmark_build_info{version=\"" + label(meshmark_version()) + "\",build_sha256=\"" + label(build_sha256()) + "\"} 1\n";
+  t += "# HELP meshmark_jobs_total Jobs that entered each state, by kind (a retried job enters queued again).\n";
+  t += "# TYPE meshmark_jobs_total counter\n";
+  for (const auto& c : m.counters) {
+    if (c.event == "rescue") continue;
+    const char* state = "?";
+    try {
+      state = api_state(store::job_state_from_string(c.event));
+    } catch (const store::StoreError&) {
+      continue;
+    }
+    t += "meshmark_jobs_total{kind=\"" + label(c.kind) + "\",state=\"" + state + "\"} " + std::to_string(c.count) + "\n";
+  }
+  t += "# HELP meshmark_lease_rescues_total Jobs taken back from workers that stopped heartbeating, by kind.\n";
+  t += "# TYPE meshmark_lease_rescues_total counter\n";
+  for (const auto& c : m.counters)
+    if (c.event == "rescue") t += "meshmark_lease_rescues_total{kind=\"" + label(c.kind) + "\"} " + std::to_string(c.count) + "\n";
+  t += "# HELP meshmark_queue_depth Jobs waiting to run (queued or retrying), by kind.\n";
+  t += "# TYPE meshmark_queue_depth gauge\n";
+  for (const auto& [kind, n] : m.queue_depth) t += "meshmark_queue_depth{kind=\"" + label(kind) + "\"} " + std::to_string(n) + "\n";
+  t += "# HELP meshmark_detections_total Detections recorded, by verdict.\n";
+  t += "# TYPE meshmark_detections_total counter\n";
+  for (const auto& [verdict, n] : m.detections)
+    t += "meshmark_detections_total{verdict=\"" + label(verdict) + "\"} " + std::to_string(n) + "\n";
+  t += "# HELP meshmark_job_duration_seconds Succeeded jobs' time from their last claim to completion, by kind.\n";
+  t += "# TYPE meshmark_job_duration_seconds histogram\n";
+  for (const auto& h : m.durations) {
+    const std::string k = "kind=\"" + label(h.kind) + "\"";
+    for (std::size_t b = 0; b < kDurationBuckets.size(); ++b)
+      t += "meshmark_job_duration_seconds_bucket{" + k + ",le=\"" + number(kDurationBuckets[b]) + "\"} " +
+           std::to_string(h.cumulative[b]) + "\n";
+    t += "meshmark_job_duration_seconds_bucket{" + k + ",le=\"+Inf\"} " + std::to_string(h.count) + "\n";
+    t += "meshmark_job_duration_seconds_sum{" + k + "} " + number(h.sum_seconds) + "\n";
+    t += "meshmark_job_duration_seconds_count{" + k + "} " + std::to_string(h.count) + "\n";
+  }
+  Response r;
+  r.content_type = "text/plain; version=0.0.4; charset=utf-8";
+  r.body = std::move(t);
+  return r;
 }
 
 Response Api::upload_part(Request& req) {
@@ -441,9 +518,11 @@ Response Api::submit(Request& req, const Caller& who, const std::string& kind) {
   return res;
 }
 
-Response Api::job(std::int64_t id) {
-  const auto j = st_.get_job(id);
-  if (!j) return fail(404, "no job " + std::to_string(id));
+Response Api::job(const std::string& id_text) {
+  const auto id = parse_id(id_text);
+  if (!id) return fail(404, "a job id is a positive integer");
+  const auto j = st_.get_job(*id);
+  if (!j) return fail(404, "no job " + std::to_string(*id));
   Response r = reply(200, job_json(*j));
   if (j->state == store::JobState::available || j->state == store::JobState::running || j->state == store::JobState::retryable)
     r.headers.emplace_back("Retry-After", "2");
@@ -501,7 +580,10 @@ Response Api::jobs(const Request& req) {
   return reply(200, {{"jobs", out}, {"next_cursor", more && last > 0 ? json(std::to_string(last)) : json(nullptr)}});
 }
 
-Response Api::job_action(std::int64_t id, const std::string& action, const Caller& who) {
+Response Api::job_action(const std::string& id_text, const std::string& action, const Caller& who) {
+  const auto parsed = parse_id(id_text);
+  if (!parsed) return fail(404, "a job id is a positive integer");
+  const std::int64_t id = *parsed;
   const auto j = st_.get_job(id);
   if (!j) return fail(404, "no job " + std::to_string(id));
   const bool done = action == "cancel" ? st_.cancel(id, "api:" + who.name) : st_.retry(id, "api:" + who.name);
@@ -512,7 +594,10 @@ Response Api::job_action(std::int64_t id, const std::string& action, const Calle
   return reply(200, job_json(*st_.get_job(id)));
 }
 
-Response Api::job_file(std::int64_t id, const std::string& which, const Request& req) {
+Response Api::job_file(const std::string& id_text, const std::string& which, const Request& req) {
+  const auto parsed = parse_id(id_text);
+  if (!parsed) return fail(404, "a job id is a positive integer");
+  const std::int64_t id = *parsed;
   const auto j = st_.get_job(id);
   if (!j) return fail(404, "no job " + std::to_string(id));
   if (j->kind != "protect") return fail(404, "job " + std::to_string(id) + " is a " + j->kind + " job; copies come from protect jobs");
@@ -539,7 +624,10 @@ Response Api::job_file(std::int64_t id, const std::string& which, const Request&
   return res;
 }
 
-Response Api::detection_of(std::int64_t id) {
+Response Api::detection_of(const std::string& id_text) {
+  const auto parsed = parse_id(id_text);
+  if (!parsed) return fail(404, "a job id is a positive integer");
+  const std::int64_t id = *parsed;
   const auto j = st_.get_job(id);
   if (!j) return fail(404, "no job " + std::to_string(id));
   if (j->kind != "detect") return fail(404, "job " + std::to_string(id) + " is a " + j->kind + " job, not a detection");

@@ -11,8 +11,10 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "http/server.h"
 #include "service/config.h"
@@ -28,16 +30,33 @@ class Api {
   http::Routes routes(const std::string& upload_dir);
   http::Response handle(http::Request& req);
 
+  using Response = http::Response;
+  struct Caller {  // the token a request came with
+    std::string name;
+    store::TokenRole role = store::TokenRole::read;
+    bool allows(store::TokenRole needed) const { return static_cast<int>(role) >= static_cast<int>(needed); }
+  };
+  using Params = std::vector<std::string>;
+  struct Route {
+    const char* method;                     // a GET route answers HEAD too
+    const char* path;                       // "/v1/jobs/{id}": {name} matches one segment
+    std::optional<store::TokenRole> role;   // none: no token needed
+    Response (*fn)(Api&, http::Request&, const Caller&, const Params&);
+  };
+  // Every route the API serves, as docs/openapi.json documents them.
+  static const std::vector<Route>& route_table();
+
  private:
-  struct Caller;
-  http::Response route(http::Request& req, const Caller& who);
-  http::Response upload_part(http::Request& req);
-  http::Response submit(http::Request& req, const Caller& who, const std::string& kind);
-  http::Response job(std::int64_t id);
-  http::Response jobs(const http::Request& req);
-  http::Response job_action(std::int64_t id, const std::string& action, const Caller& who);
-  http::Response job_file(std::int64_t id, const std::string& which, const http::Request& req);
-  http::Response detection_of(std::int64_t id);
+  Response ready();
+  Response metrics();
+  Response upload_part(http::Request& req);
+  Response part(const std::string& sha256);
+  Response submit(http::Request& req, const Caller& who, const std::string& kind);
+  Response job(const std::string& id);
+  Response jobs(const http::Request& req);
+  Response job_action(const std::string& id, const std::string& action, const Caller& who);
+  Response job_file(const std::string& id, const std::string& which, const http::Request& req);
+  Response detection_of(const std::string& id);
 
   store::Store& st_;
   std::function<std::shared_ptr<const Config>()> config_;

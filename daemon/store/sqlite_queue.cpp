@@ -1,6 +1,8 @@
 // The job queue: every state transition one BEGIN IMMEDIATE transaction (docs/queue-contract.md).
 #include "store/sqlite_store_impl.h"
 
+#include <cmath>
+
 namespace mm::store::sqlite_detail {
 
 EnqueueResult SqliteStore::enqueue(const JobSpec& spec, const std::string& actor) {
@@ -227,6 +229,75 @@ std::optional<Millis> SqliteStore::next_scheduled() {
   Stmt q(db_, "SELECT MIN(scheduled_at) FROM jobs WHERE state IN ('available', 'retryable')");
   q.step();
   return q.opt_i64(0);
+}
+
+int SqliteStore::consume_job_events(const std::string& consumer, int limit,
+                                    const std::function<std::vector<JobSpec>(const JobEvent&)>& jobs_for) {
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  std::int64_t cursor = 0;
+  {
+    Stmt q(db_, "SELECT last_event_id FROM event_cursors WHERE consumer = ?");
+    if (q.bind(1, consumer).step()) {
+      cursor = q.i64(0);
+    } else {
+      Stmt m(db_, "SELECT COALESCE(MAX(id), 0) FROM job_events");
+      m.step();
+      cursor = m.i64(0);
+    }
+  }
+  std::vector<JobEvent> events;
+  {
+    Stmt q(db_, "SELECT id, job_id, kind, state, at FROM job_events WHERE id > ? ORDER BY id LIMIT ?");
+    q.bind(1, cursor).bind(2, limit);
+    while (q.step()) events.push_back({q.i64(0), q.i64(1), q.text(2), job_state_from_string(q.text(3)), q.i64(4)});
+  }
+  for (const auto& e : events) {
+    for (const auto& spec : jobs_for(e)) insert_job(spec, "events:" + consumer);
+    cursor = e.id;
+  }
+  Stmt u(db_, "INSERT INTO event_cursors(consumer, last_event_id) VALUES(?, ?) "
+              "ON CONFLICT(consumer) DO UPDATE SET last_event_id = excluded.last_event_id");
+  u.bind(1, consumer).bind(2, cursor).run();
+  Stmt prune(db_, "DELETE FROM job_events WHERE id <= (SELECT MIN(last_event_id) FROM event_cursors) AND at < ?");
+  prune.bind(1, static_cast<std::int64_t>(now() - Millis{7} * 24 * 3600 * 1000)).run();
+  tx.commit();
+  return static_cast<int>(events.size());
+}
+
+StoreMetrics SqliteStore::metrics(const std::vector<double>& bucket_seconds) {
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_, false);  // one snapshot; a read, so writers are not held up
+  StoreMetrics out;
+  {
+    Stmt q(db_, "SELECT kind, event, n FROM job_counters ORDER BY kind, event");
+    while (q.step()) out.counters.push_back({q.text(0), q.text(1), q.i64(2)});
+  }
+  {
+    Stmt q(db_, "SELECT kind, COUNT(*) FROM jobs WHERE state IN ('available', 'retryable') GROUP BY kind ORDER BY kind");
+    while (q.step()) out.queue_depth.emplace_back(q.text(0), q.i64(1));
+  }
+  {
+    Stmt q(db_, "SELECT verdict, COUNT(*) FROM detections GROUP BY verdict ORDER BY verdict");
+    while (q.step()) out.detections.emplace_back(q.text(0), q.i64(1));
+  }
+  // Bucket counts in SQL: one row per kind whatever the number of jobs.
+  std::string sql = "SELECT kind, COUNT(*), TOTAL(d) / 1000.0";
+  for (std::size_t b = 0; b < bucket_seconds.size(); ++b) sql += ", TOTAL(d <= ?" + std::to_string(b + 1) + ")";
+  sql += " FROM (SELECT kind, MAX(0, finished_at - attempted_at) AS d FROM jobs WHERE state = 'completed' "
+         "AND attempted_at IS NOT NULL AND finished_at IS NOT NULL) GROUP BY kind ORDER BY kind";
+  Stmt q(db_, sql.c_str());
+  for (std::size_t b = 0; b < bucket_seconds.size(); ++b)
+    q.bind(static_cast<int>(b + 1), static_cast<std::int64_t>(std::llround(bucket_seconds[b] * 1000)));
+  while (q.step()) {
+    DurationHistogram h;
+    h.kind = q.text(0);
+    h.count = q.i64(1);
+    h.sum_seconds = q.f64(2);
+    for (std::size_t b = 0; b < bucket_seconds.size(); ++b) h.cumulative.push_back(std::llround(q.f64(static_cast<int>(b + 3))));
+    out.durations.push_back(std::move(h));
+  }
+  return out;
 }
 
 bool SqliteStore::integrity_ok() {

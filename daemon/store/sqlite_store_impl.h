@@ -225,6 +225,10 @@ class SqliteStore final : public Store {
   bool revoke_token(const std::string& name, const std::string& actor) override;
   std::optional<ApiToken> token_for_secret(const std::string& secret) override;
 
+  StoreMetrics metrics(const std::vector<double>& bucket_seconds) override;
+  int consume_job_events(const std::string& consumer, int limit,
+                         const std::function<std::vector<JobSpec>(const JobEvent&)>& jobs_for) override;
+
   // ------------------------------------------------------------ queue
   EnqueueResult enqueue(const JobSpec& spec, const std::string& actor) override;
 

@@ -258,6 +258,35 @@ struct QueueCounts {
                cancelled = 0;
 };
 
+// What /metrics reports (daemon/service/api.h), read in one snapshot.
+struct JobCounter {
+  std::string kind;
+  std::string event;  // a job state (to_string(JobState)) it entered, or "rescue"
+  std::int64_t count = 0;
+};
+struct DurationHistogram {  // completed jobs of one kind: completion minus their last claim
+  std::string kind;
+  std::vector<std::int64_t> cumulative;  // jobs at or under each bound (StoreMetrics' bounds)
+  std::int64_t count = 0;
+  double sum_seconds = 0;
+};
+struct StoreMetrics {
+  std::vector<JobCounter> counters;                             // since the store was created
+  std::vector<std::pair<std::string, std::int64_t>> queue_depth;  // kind -> available + retryable now
+  std::vector<std::pair<std::string, std::int64_t>> detections;   // verdict -> detections recorded
+  std::vector<DurationHistogram> durations;
+};
+
+// A job reaching a final state (completed, discarded, cancelled), as the store's trigger records
+// it; webhook jobs raise none.
+struct JobEvent {
+  std::int64_t id = 0;  // increasing
+  std::int64_t job_id = 0;
+  std::string kind;
+  JobState state = JobState::completed;
+  Millis at = 0;
+};
+
 struct BackoffPolicy {
   Millis base = 1000;         // delay after the 1st failure; doubles per attempt
   Millis max = 3600 * 1000;   // cap
@@ -367,6 +396,16 @@ class Store {
   virtual QueueCounts counts() = 0;
   // Earliest scheduled_at of a retryable job (to sleep until), if any.
   virtual std::optional<Millis> next_scheduled() = 0;
+
+  // The job events after `consumer`'s cursor (at most `limit`, oldest first), each turned into
+  // jobs by `jobs_for` (enqueued, idempotent by their keys) and the cursor moved past them, in one
+  // transaction. A new consumer starts after the newest event. Events every consumer has read
+  // and older than a week are deleted. Returns how many events were consumed.
+  virtual int consume_job_events(const std::string& consumer, int limit,
+                                 const std::function<std::vector<JobSpec>(const JobEvent&)>& jobs_for) = 0;
+
+  // The counters, gauges and histograms of /metrics; bucket_seconds ascending.
+  virtual StoreMetrics metrics(const std::vector<double>& bucket_seconds) = 0;
 
   // PRAGMA integrity_check == "ok" (or the backend's equivalent).
   virtual bool integrity_ok() = 0;

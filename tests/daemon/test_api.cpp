@@ -10,6 +10,7 @@
 #include <fstream>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 
 #include "http/server.h"
@@ -291,6 +292,134 @@ TEST_F(ApiTest, TokensAreStoredHashedOnly) {
   EXPECT_THROW(st->create_token("another", store::TokenRole::read), store::StoreError);
   EXPECT_THROW(st->create_token("../x", store::TokenRole::read), store::StoreError);
   EXPECT_EQ(st->list_tokens().size(), 4u);
+}
+
+}  // namespace
+
+namespace {
+
+std::string media_type(const std::string& content_type) { return content_type.substr(0, content_type.find(';')); }
+
+// docs/openapi.json documents exactly the routes the server has, and each documented operation,
+// called as a client would, answers with a status and media type the document gives for it.
+TEST_F(ApiTest, TheOpenApiDocumentIsTheRouteTableAndEachRouteAnswersAsDocumented) {
+  std::ifstream in(std::string(MESHMARK_SOURCE_DIR) + "/docs/openapi.json");
+  const json doc = json::parse(in);
+  ASSERT_EQ(doc["openapi"], "3.1.0");
+  std::set<std::string> documented, served;
+  for (const auto& [path, ops] : doc["paths"].items())
+    for (const auto& [method, op] : ops.items()) documented.insert(method + " " + path);
+  for (const auto& r : service::Api::route_table()) {
+    std::string m = r.method;
+    for (char& c : m) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    served.insert(m + " " + r.path);
+  }
+  EXPECT_EQ(documented, served);
+
+  // Objects every route can be asked about: a succeeded protect job with its files, a succeeded
+  // detection, a queued job to cancel and a cancelled one to retry.
+  const std::string sha = upload("solid o\nendsolid o\n", "o.stl");
+  const auto enqueue = [&](const std::string& kind, const std::string& key) {
+    store::JobSpec spec;
+    spec.kind = kind;
+    spec.payload_json = json{{"name", "o.stl"}, {"input_sha256", sha}, {"customer", "alice"}}.dump();
+    spec.idempotency_key = key;
+    return st->enqueue(spec).job.id;
+  };
+  const auto protect = enqueue("protect", "p");
+  const auto detect = enqueue("detect", "d");
+  std::ofstream(dir / "copy.stl") << "solid copy\nendsolid copy\n";
+  std::ofstream(dir / "copy.mmc") << "MMC";
+  store::JobRecords pr;
+  pr.result_json = json{{"output", (dir / "copy.stl").string()}, {"output_sha256", std::string(64, 'c')},
+                        {"stream", (dir / "copy.mmc").string()}, {"stream_sha256", std::string(64, 'd')}}.dump();
+  ASSERT_EQ(st->claim("w", 60000, {"protect"})->id, protect);
+  st->complete(protect, "w", pr);
+  store::JobRecords dr;
+  store::NewDetection d;
+  d.suspect_sha256 = sha;
+  d.suspect_name = "o.stl";
+  d.verdict = "no watermark found";
+  dr.detections.push_back(d);
+  ASSERT_EQ(st->claim("w", 60000, {"detect"})->id, detect);
+  st->complete(detect, "w", dr);
+  const auto queued = enqueue("detect", "q");
+  const auto cancelled = enqueue("detect", "c");
+  st->cancel(cancelled);
+
+  const auto id_for = [&](const std::string& method, const std::string& path) -> std::int64_t {
+    if (path.find("/cancel") != std::string::npos) return queued;
+    if (path.find("/retry") != std::string::npos) return cancelled;
+    if (path.find("/detection") != std::string::npos) return detect;
+    (void)method;
+    return protect;
+  };
+  for (const auto& [path, ops] : doc["paths"].items()) {
+    for (const auto& [method, op] : ops.items()) {
+      std::string target = path, body, headers;
+      const auto id_at = target.find("{id}");
+      if (id_at != std::string::npos) target.replace(id_at, 4, std::to_string(id_for(method, path)));
+      const auto sha_at = target.find("{sha256}");
+      if (sha_at != std::string::npos) target.replace(sha_at, 8, sha);
+      if (path == "/v1/parts") {
+        target += "?name=again.stl";
+        body = "solid again\nendsolid again\n";
+      } else if (path == "/v1/jobs/protect") {
+        body = json{{"part", {{"sha256", sha}, {"name", "o.stl"}}}, {"customers", {"bob"}}}.dump();
+        headers = "Content-Type: application/json\r\n";
+      } else if (path == "/v1/jobs/detect") {
+        body = json{{"part", {{"sha256", sha}, {"name", "other.stl"}}}}.dump();
+        headers = "Content-Type: application/json\r\n";
+      }
+      std::string upper = method;
+      for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+      const bool open = op.contains("security") && op["security"].empty();
+      const Reply r = call(port(), upper, target, open ? "" : admin, body, headers);
+      const std::string status = std::to_string(r.status);
+      ASSERT_TRUE(op["responses"].contains(status)) << upper << " " << target << " answered " << status << ": " << r.body;
+      json response = op["responses"][status];
+      if (response.contains("$ref")) response = doc["components"]["responses"]["Problem"];
+      if (response.contains("content"))
+        EXPECT_TRUE(response["content"].contains(media_type(r.header("Content-Type"))))
+            << upper << " " << target << ": " << r.header("Content-Type");
+      EXPECT_LT(r.status, 300) << upper << " " << target << ": " << r.body;
+      if (!open) {
+        const Reply anon = call(port(), upper, target, "", body, headers);
+        EXPECT_EQ(anon.status, 401) << upper << " " << target;
+        EXPECT_TRUE(op["responses"].contains("401")) << upper << " " << path;
+      }
+    }
+  }
+}
+
+TEST_F(ApiTest, MetricsCountJobsByStateAndPassPromtool) {
+  const std::string sha = upload("solid m\nendsolid m\n");
+  const Reply sub = call(port(), "POST", "/v1/jobs/detect", submitter, json{{"part", {{"sha256", sha}, {"name", "m.stl"}}}}.dump());
+  const auto id = sub.j["jobs"][0]["id"].get<std::int64_t>();
+  ASSERT_EQ(st->claim("w", 60000)->id, id);
+  st->complete(id, "w", store::JobRecords{});
+  const Reply m = call(port(), "GET", "/metrics", reader);
+  ASSERT_EQ(m.status, 200);
+  EXPECT_EQ(m.header("Content-Type"), "text/plain; version=0.0.4; charset=utf-8");
+  EXPECT_NE(m.body.find("meshmark_jobs_total{kind=\"detect\",state=\"queued\"} 1\n"), std::string::npos) << m.body;
+  EXPECT_NE(m.body.find("meshmark_jobs_total{kind=\"detect\",state=\"running\"} 1\n"), std::string::npos);
+  EXPECT_NE(m.body.find("meshmark_jobs_total{kind=\"detect\",state=\"succeeded\"} 1\n"), std::string::npos);
+  EXPECT_NE(m.body.find("meshmark_job_duration_seconds_count{kind=\"detect\"} 1\n"), std::string::npos);
+  EXPECT_NE(m.body.find("meshmark_build_info{"), std::string::npos);
+  EXPECT_EQ(m.body.find("alice"), std::string::npos) << "no customer names as labels";
+  EXPECT_EQ(call(port(), "GET", "/metrics", "").status, 401);
+
+  // Prometheus's own checker (Debian's prometheus package); required under CI.
+  if (std::system("command -v promtool >/dev/null 2>&1") != 0) {
+    if (const char* ci = std::getenv("CI"); ci && std::string(ci) == "true") FAIL() << "promtool is not installed";
+    GTEST_SKIP() << "promtool is not installed (apt-get install prometheus)";
+  }
+  const fs::path file = dir / "metrics.txt";
+  std::ofstream(file) << m.body;
+  const std::string cmd = "promtool check metrics < " + file.string() + " > " + (dir / "promtool.log").string() + " 2>&1";
+  const int rc = std::system(cmd.c_str());
+  std::ifstream log(dir / "promtool.log");
+  EXPECT_EQ(rc, 0) << std::string((std::istreambuf_iterator<char>(log)), {});
 }
 
 }  // namespace
