@@ -21,6 +21,7 @@
 #include <boost/beast/http/string_body.hpp>
 #include <boost/asio/error.hpp>
 #include <cerrno>
+#include <chrono>
 #include <condition_variable>
 #include <cstdio>
 #include <cstring>
@@ -267,6 +268,19 @@ ListenAddress parse_listen(const std::string& text) {
   return a;
 }
 
+// A client connection: served by one thread at a time, parked with the acceptor between requests.
+struct Connection {
+  int fd = -1;
+  std::string peer;
+  beast::flat_buffer buf;
+  int served = 0;  // requests answered
+  std::chrono::steady_clock::time_point idle_since;
+  ~Connection() {
+    if (fd >= 0) ::close(fd);
+  }
+};
+using ConnectionPtr = std::unique_ptr<Connection>;
+
 struct Server::Impl {
   ListenAddress where;
   Limits limits;
@@ -279,12 +293,14 @@ struct Server::Impl {
   std::vector<std::thread> servers;
   std::mutex m;
   std::condition_variable cv;
-  std::deque<std::pair<int, std::string>> waiting;  // accepted fds and their peers
+  std::deque<ConnectionPtr> waiting;   // readable: for the next free thread
+  std::deque<ConnectionPtr> returned;  // served and kept alive: for the acceptor to park
+  std::atomic<int> open{0};            // connections open: waiting, being served or parked
 
   void bind_and_listen();
   void accept_loop();
   void serve_loop();
-  void serve(int fd, const std::string& peer);
+  void wake();
   // One request; false when the connection must close.
   bool serve_one(int fd, TimedSocket& sock, beast::flat_buffer& buf, const std::string& peer, bool last);
 };
@@ -340,59 +356,99 @@ void Server::Impl::bind_and_listen() {
   wake_fd = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
 }
 
+void Server::Impl::wake() {
+  const std::uint64_t one = 1;
+  [[maybe_unused]] auto n = ::write(wake_fd, &one, sizeof one);
+}
+
+// Polls the listening socket and every kept-alive connection, so an idle client holds no thread:
+// a parked connection that turns readable goes to the serving threads, one idle past
+// idle_timeout_ms is closed, and a new one beyond threads + queue open connections gets 503.
 void Server::Impl::accept_loop() {
+  using clock = std::chrono::steady_clock;
+  std::vector<ConnectionPtr> parked;
+  std::vector<struct pollfd> p;
   while (!stopping) {
-    struct pollfd p[2] = {{listen_fd, POLLIN, 0}, {wake_fd, POLLIN, 0}};
-    if (::poll(p, 2, 1000) <= 0 || !(p[0].revents & POLLIN)) continue;
+    p.assign({{listen_fd, POLLIN, 0}, {wake_fd, POLLIN, 0}});
+    for (const auto& c : parked) p.push_back({c->fd, POLLIN, 0});
+    ::poll(p.data(), p.size(), 200);
+    if (p[1].revents & POLLIN) {
+      std::uint64_t n;
+      [[maybe_unused]] auto r = ::read(wake_fd, &n, sizeof n);
+    }
+    const auto now = clock::now();
+    std::vector<ConnectionPtr> still;
+    {
+      std::lock_guard<std::mutex> lock(m);
+      for (std::size_t k = 0; k < parked.size(); ++k) {
+        if (p[k + 2].revents) waiting.push_back(std::move(parked[k]));  // a request, or the peer left
+        else if (now - parked[k]->idle_since > std::chrono::milliseconds(limits.idle_timeout_ms)) --open;  // closed
+        else still.push_back(std::move(parked[k]));
+      }
+      for (auto& c : returned) still.push_back(std::move(c));
+      returned.clear();
+    }
+    parked = std::move(still);
+    cv.notify_all();
+    if (!(p[0].revents & POLLIN)) continue;
     sockaddr_storage ss{};
     socklen_t len = sizeof ss;
     const int fd = ::accept4(listen_fd, reinterpret_cast<sockaddr*>(&ss), &len, SOCK_CLOEXEC);
     if (fd < 0) continue;
-    std::string peer = "unix";
+    auto c = std::make_unique<Connection>();
+    c->fd = fd;
+    c->peer = "unix";
     if (ss.ss_family == AF_INET || ss.ss_family == AF_INET6) {
       char host[NI_MAXHOST], serv[NI_MAXSERV];
       if (::getnameinfo(reinterpret_cast<sockaddr*>(&ss), len, host, sizeof host, serv, sizeof serv,
                         NI_NUMERICHOST | NI_NUMERICSERV) == 0)
-        peer = std::string(host) + ":" + serv;
+        c->peer = std::string(host) + ":" + serv;
     }
-    std::unique_lock<std::mutex> lock(m);
-    if (static_cast<int>(waiting.size()) >= limits.queue) {
-      lock.unlock();
-      Response busy = problem(503, "Service Unavailable", "too many connections are waiting; retry shortly");
+    if (open.load() >= std::max(1, limits.threads) + limits.queue) {
+      Response busy = problem(503, "Service Unavailable", "too many connections are open; retry shortly");
       busy.headers.emplace_back("Retry-After", "1");
       write_response(fd, busy, false, false, 1000);
-      ::close(fd);
-      continue;
+      continue;  // closed with c
     }
-    waiting.emplace_back(fd, std::move(peer));
-    lock.unlock();
+    ++open;
+    std::lock_guard<std::mutex> lock(m);
+    waiting.push_back(std::move(c));
     cv.notify_one();
   }
 }
 
+// Serves a connection's requests while they arrive back to back, then hands it back to the acceptor.
 void Server::Impl::serve_loop() {
   for (;;) {
     std::unique_lock<std::mutex> lock(m);
     cv.wait(lock, [&] { return stopping || !waiting.empty(); });
     if (waiting.empty()) return;  // stopping
-    auto [fd, peer] = std::move(waiting.front());
+    ConnectionPtr c = std::move(waiting.front());
     waiting.pop_front();
     lock.unlock();
+    bool keep = true;
     try {
-      serve(fd, peer);
+      TimedSocket sock(c->fd, limits.idle_timeout_ms);
+      do {
+        sock.set_timeout(limits.idle_timeout_ms);
+        ++c->served;
+        keep = serve_one(c->fd, sock, c->buf, c->peer, c->served >= limits.max_requests_per_connection) &&
+               c->served < limits.max_requests_per_connection && !stopping;
+      } while (keep && c->buf.size() > 0);  // pipelined requests already read
     } catch (const std::exception& e) {
-      spdlog::warn("http: connection from {} ended: {}", peer, e.what());
+      spdlog::warn("http: connection from {} ended: {}", c->peer, e.what());
+      keep = false;
     }
-    ::close(fd);
-  }
-}
-
-void Server::Impl::serve(int fd, const std::string& peer) {
-  TimedSocket sock(fd, limits.idle_timeout_ms);
-  beast::flat_buffer buf(limits.max_header_bytes + 4096);
-  for (int k = 0; k < limits.max_requests_per_connection && !stopping; ++k) {
-    sock.set_timeout(limits.idle_timeout_ms);
-    if (!serve_one(fd, sock, buf, peer, k + 1 == limits.max_requests_per_connection)) return;
+    if (!keep) {
+      c.reset();
+      --open;
+      continue;
+    }
+    c->idle_since = std::chrono::steady_clock::now();
+    lock.lock();
+    returned.push_back(std::move(c));
+    lock.unlock();
+    wake();
   }
 }
 
@@ -499,7 +555,12 @@ bool Server::Impl::serve_one(int fd, TimedSocket& sock, beast::flat_buffer& buf,
     spdlog::error("http: {} {}: {}", req.method, req.path, e.what());
     res = problem(500, "Internal Server Error", "the request failed inside the server; see its log");
   }
-  return write_response(fd, res, keep_alive, req.method == "HEAD", t) && keep_alive;
+  const bool sent = write_response(fd, res, keep_alive, req.method == "HEAD", t);
+  if (res.remove_file && !res.file.empty()) {
+    std::error_code ec;
+    fs::remove(res.file, ec);
+  }
+  return sent && keep_alive;
 }
 
 Server::Server(ListenAddress where, Limits limits, Routes routes) : impl_(std::make_unique<Impl>()) {
@@ -519,16 +580,13 @@ void Server::start() {
 
 void Server::stop() {
   if (!impl_ || impl_->stopping.exchange(true)) return;
-  if (impl_->wake_fd >= 0) {
-    const std::uint64_t one = 1;
-    [[maybe_unused]] auto n = ::write(impl_->wake_fd, &one, sizeof one);
-  }
+  if (impl_->wake_fd >= 0) impl_->wake();
   if (impl_->acceptor.joinable()) impl_->acceptor.join();
   impl_->cv.notify_all();
   for (auto& t : impl_->servers)
     if (t.joinable()) t.join();
-  for (auto& [fd, peer] : impl_->waiting) ::close(fd);
-  impl_->waiting.clear();
+  impl_->waiting.clear();  // closes them
+  impl_->returned.clear();
   if (impl_->listen_fd >= 0) ::close(impl_->listen_fd);
   if (impl_->wake_fd >= 0) ::close(impl_->wake_fd);
   if (impl_->where.unix_socket && impl_->listen_fd >= 0) {

@@ -6,12 +6,13 @@
 // cap, Transfer-Encoding accepted beside Content-Length), and none of them can be switched off from
 // outside. Beast is header-only in Debian's Boost 1.74 and leaves the I/O to us: its parser refuses
 // Transfer-Encoding with Content-Length, caps header and body bytes (chunked ones too), and never
-// decodes a body, and our own loop caps header count, time per read, queued connections and
+// decodes a body, and our own loop caps header count, time per read, open connections and
 // threads. The server still listens on loopback or a Unix socket; TLS and client certificates are
 // nginx's (config/nginx-meshmark.conf).
 //
-// Threads: one accepts, `threads` serve connections taken from a queue of at most `queue`; a
-// connection beyond that is answered 503 at once. Handlers run on the serving threads.
+// Threads: one accepts and watches kept-alive connections between requests (so an idle client
+// holds no thread); `threads` serve requests. At most threads + `queue` connections are open; one
+// beyond that is answered 503 at once.
 #pragma once
 #include <atomic>
 #include <cstdint>
@@ -34,7 +35,7 @@ struct Limits {
   int idle_timeout_ms = 15000;                     // a kept-alive connection between requests
   int max_requests_per_connection = 1000;
   int threads = 4;
-  int queue = 64;
+  int queue = 508;  // open connections beyond the serving threads (waiting or kept alive)
 };
 
 // A header's name lower-cased -> its value (repeated fields joined with ", ").
@@ -63,6 +64,7 @@ struct Response {
   std::string body;
   std::vector<std::pair<std::string, std::string>> headers;
   std::string file;  // when set, the body is this file's bytes, streamed (body ignored)
+  bool remove_file = false;  // the file is a temporary one: removed once sent (or not)
 };
 
 // RFC 9457 problem details: {"type", "title", "status", "detail"} plus `extra`'s members.
