@@ -11,6 +11,7 @@
 #include "service/config.h"
 #include "service/daemon.h"
 #include "service/handlers.h"
+#include "service/webhooks.h"
 #include "store/home.h"
 
 namespace mm::cli {
@@ -85,6 +86,11 @@ void add_run_commands(CLI::App& app) {
     cmd->add_option("files", o->files, "mesh files (STL, OBJ, OFF, PLY, 3MF, glTF, GLB)")->required()->check(CLI::ExistingFile);
     cmd->callback([o, protect] { submit(*o, protect); });
   }
+
+  auto* hooks = app.add_subcommand("webhook", "Webhook endpoints' secrets (docs/api.md, Webhooks)");
+  hooks->require_subcommand(1);
+  hooks->add_subcommand("secret", "Print a new random secret for an endpoint's secret_file (whsec_...)")
+      ->callback([] { std::cout << service::new_webhook_secret() << "\n"; });
 
   auto* run = app.add_subcommand("run", "Process queued jobs without a resident daemon");
   auto cfg_path = std::make_shared<std::string>();

@@ -4,12 +4,16 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <variant>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
 #include "meshio/read_mesh.h"
 #include "service/build_info.h"
 #include "service/handlers.h"
+#include "service/run_program.h"
+#include "service/status_page.h"
+#include "support/sha256.h"
 #include "support/printable.h"
 
 namespace mm::service {
@@ -49,6 +53,29 @@ Response reply(int status, const json& j) {
   Response r;
   r.status = status;
   r.body = j.dump();
+  return r;
+}
+
+// The page's one inline script is allowed by its hash, nothing else runs: a name or reason that
+// slipped into the DOM as markup still could not execute.
+Response status_page() {
+  static const std::string csp = [] {
+    const std::string page = kStatusPageHtml;
+    const auto begin = page.find("<script>") + 8;
+    const std::string script = page.substr(begin, page.find("</script>") - begin);
+    unsigned char h[crypto_hash_sha256_BYTES];
+    crypto_hash_sha256(h, reinterpret_cast<const unsigned char*>(script.data()), script.size());
+    char b64[sodium_base64_ENCODED_LEN(sizeof h, sodium_base64_VARIANT_ORIGINAL)];
+    sodium_bin2base64(b64, sizeof b64, h, sizeof h, sodium_base64_VARIANT_ORIGINAL);
+    return "default-src 'none'; script-src 'sha256-" + std::string(b64) +
+           "'; style-src 'unsafe-inline'; connect-src 'self'; img-src 'self'; base-uri 'none'; "
+           "form-action 'none'; frame-ancestors 'none'";
+  }();
+  Response r;
+  r.content_type = "text/html; charset=utf-8";
+  r.body = kStatusPageHtml;
+  r.headers = {{"Content-Security-Policy", csp}, {"X-Frame-Options", "DENY"},
+               {"Referrer-Policy", "no-referrer"}, {"Cache-Control", "no-store"}};
   return r;
 }
 
@@ -207,9 +234,14 @@ std::optional<std::vector<std::string>> match(const std::string& pattern, const 
 const std::vector<Api::Route>& Api::route_table() {
   using R = store::TokenRole;
   static const std::vector<Route> table = {
+      {"GET", "/", std::nullopt, [](Api&, Request&, const Caller&, const Params&) { return status_page(); }},
       {"GET", "/healthz", std::nullopt, [](Api&, Request&, const Caller&, const Params&) { return reply(200, {{"status", "ok"}}); }},
       {"GET", "/readyz", std::nullopt, [](Api& a, Request&, const Caller&, const Params&) { return a.ready(); }},
       {"GET", "/metrics", R::read, [](Api& a, Request&, const Caller&, const Params&) { return a.metrics(); }},
+      {"GET", "/v1/me", R::read, [](Api&, Request&, const Caller& w, const Params&) {
+         return reply(200, {{"name", w.name}, {"role", store::to_string(w.role)}});
+       }},
+      {"GET", "/v1/queue", R::read, [](Api& a, Request&, const Caller&, const Params&) { return a.queue(); }},
       {"POST", "/v1/parts", R::submit, [](Api& a, Request& q, const Caller&, const Params&) { return a.upload_part(q); }},
       {"GET", "/v1/parts/{sha256}", R::read, [](Api& a, Request&, const Caller&, const Params& p) { return a.part(p[0]); }},
       {"POST", "/v1/jobs/protect", R::submit, [](Api& a, Request& q, const Caller& w, const Params&) { return a.submit(q, w, "protect"); }},
@@ -224,6 +256,9 @@ const std::vector<Api::Route>& Api::route_table() {
       {"GET", "/v1/jobs/{id}/stream", R::read,
        [](Api& a, Request& q, const Caller&, const Params& p) { return a.job_file(p[0], "stream", q); }},
       {"GET", "/v1/jobs/{id}/detection", R::read, [](Api& a, Request&, const Caller&, const Params& p) { return a.detection_of(p[0]); }},
+      {"GET", "/v1/jobs/{id}/evidence", R::read, [](Api& a, Request& q, const Caller&, const Params& p) { return a.evidence(p[0], q); }},
+      {"POST", "/v1/jobs/{id}/evidence", R::submit,
+       [](Api& a, Request&, const Caller& w, const Params& p) { return a.request_evidence(p[0], w); }},
   };
   return table;
 }
@@ -276,6 +311,12 @@ Response Api::handle(Request& req) {
     spdlog::error("api: {} {}: {}", req.method, support::printable(req.path, 200), e.what());
     return fail(503, "the store refused the request; retry later");
   }
+}
+
+Response Api::queue() {
+  const auto c = st_.counts();
+  return reply(200, {{"queued", c.available}, {"running", c.running}, {"retrying", c.retryable},
+                     {"succeeded", c.completed}, {"failed", c.discarded}, {"cancelled", c.cancelled}});
 }
 
 Response Api::ready() {
@@ -651,6 +692,76 @@ Response Api::detection_of(const std::string& id_text) {
   const json details = json::parse(d->details_json, nullptr, false);
   out["details"] = details.is_discarded() ? json(nullptr) : details;
   return reply(200, out);
+}
+
+namespace {
+
+// The detection a succeeded detect job recorded, or the problem saying why there is none.
+std::variant<store::Detection, Response> detection_for(store::Store& st, const std::string& id_text) {
+  const auto id = parse_id(id_text);
+  if (!id) return fail(404, "a job id is a positive integer");
+  const auto j = st.get_job(*id);
+  if (!j) return fail(404, "no job " + std::to_string(*id));
+  if (j->kind != "detect") return fail(404, "job " + std::to_string(*id) + " is a " + j->kind + " job, not a detection");
+  if (j->state != store::JobState::completed)
+    return fail(409, "job " + std::to_string(*id) + " is " + api_state(j->state) + "; its verdict exists once it has succeeded");
+  const auto d = st.detection_of_job(*id);
+  if (!d) return fail(410, "job " + std::to_string(*id) + " recorded no detection");
+  return *d;
+}
+
+}  // namespace
+
+Response Api::evidence(const std::string& id_text, const Request& req) {
+  auto d = detection_for(st_, id_text);
+  if (auto* problem = std::get_if<Response>(&d)) return *problem;
+  const auto& det = std::get<store::Detection>(d);
+  const auto cfg = config_();
+  const fs::path dir = evidence_package_dir(*cfg, det);
+  std::error_code ec;
+  if (!fs::is_regular_file(dir / "statement.dsse.json", ec))
+    return fail(404, "detection " + std::to_string(det.id) + " has no evidence package yet (POST this URL to write one)");
+  const std::string etag = "\"" + support::sha256_file_hex((dir / "statement.json").string()) + "\"";
+  Response res;
+  res.headers.emplace_back("ETag", etag);
+  if (req.header("if-none-match") == etag) {
+    res.status = 304;
+    res.content_type.clear();
+    return res;
+  }
+  // The package folder as one tar (the same bytes each time: sorted, owner and times fixed).
+  unsigned char rnd[8];
+  randombytes_buf(rnd, sizeof rnd);
+  const std::string tar = (fs::temp_directory_path() / ("meshmark-evidence-" + sha256_hex(std::string(reinterpret_cast<char*>(rnd), sizeof rnd)).substr(0, 16) + ".tar")).string();
+  const int rc = run_program({"tar", "--sort=name", "--owner=0", "--group=0", "--numeric-owner", "--mtime=@0", "-C",
+                              dir.parent_path().string(), "-cf", tar, dir.filename().string()});
+  if (rc != 0) {
+    fs::remove(tar, ec);
+    return fail(503, "the evidence package could not be archived; retry later");
+  }
+  res.file = tar;
+  res.remove_file = true;
+  res.content_type = "application/x-tar";
+  res.headers.emplace_back("Content-Disposition", "attachment; filename=\"" + dir.filename().string() + ".tar\"");
+  return res;
+}
+
+Response Api::request_evidence(const std::string& id_text, const Caller& who) {
+  auto d = detection_for(st_, id_text);
+  if (auto* problem = std::get_if<Response>(&d)) return *problem;
+  const auto cfg = config_();
+  store::JobSpec spec;
+  spec.kind = "evidence";
+  spec.payload_json = json{{"detect_job", std::get<store::Detection>(d).job_id.value_or(0)}}.dump();
+  spec.max_attempts = cfg->max_attempts;
+  spec.idempotency_key = "evidence:job:" + id_text;  // as evidence.auto enqueues it
+  const auto r = st_.enqueue(spec, "api:" + who.name);
+  json j = job_json(r.job);
+  j["created"] = r.created;
+  Response res = reply(202, {{"jobs", json::array({j})}});
+  res.headers.emplace_back("Location", "/v1/jobs/" + std::to_string(r.job.id));
+  res.headers.emplace_back("Retry-After", "5");
+  return res;
 }
 
 }  // namespace mm::service

@@ -48,6 +48,7 @@ class Api {
 
  private:
   Response ready();
+  Response queue();
   Response metrics();
   Response upload_part(http::Request& req);
   Response part(const std::string& sha256);
@@ -57,6 +58,8 @@ class Api {
   Response job_action(const std::string& id, const std::string& action, const Caller& who);
   Response job_file(const std::string& id, const std::string& which, const http::Request& req);
   Response detection_of(const std::string& id);
+  Response evidence(const std::string& id, const http::Request& req);
+  Response request_evidence(const std::string& id, const Caller& who);
 
   store::Store& st_;
   std::function<std::shared_ptr<const Config>()> config_;

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <set>
 #include <sstream>
 
@@ -145,7 +146,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
   cfg.source = source;
   c.known(j, "", {"home", "drop_dir", "output_dir", "master_key_file", "workers", "lease_seconds",
                   "heartbeat_seconds", "max_attempts", "shutdown_grace_seconds", "poll_interval_ms",
-                  "settle_ms", "use_inotify", "input_roots", "max_input_bytes", "max_triangles", "output_format", "watermark", "compression", "detect", "evidence", "cad", "http", "log_level",
+                  "settle_ms", "use_inotify", "input_roots", "max_input_bytes", "max_triangles", "output_format", "watermark", "compression", "detect", "evidence", "cad", "http", "webhooks", "log_level",
                   "log_file", "$comment"});
   c.path(j, "home", cfg.home, true);
   c.path(j, "drop_dir", cfg.drop_dir, true);
@@ -271,6 +272,44 @@ Config parse_config(const std::string& text, const std::string& source, const st
       c.integer(h, "http.", "max_body_bytes", cfg.http_max_body_bytes, 1024, 64 << 20);
     }
   }
+  if (j.contains("webhooks")) {
+    const json& w = j["webhooks"];
+    if (!w.is_object()) {
+      c.error("webhooks", "must be an object");
+    } else {
+      c.known(w, "webhooks.", {"endpoints", "max_attempts"});
+      c.integer(w, "webhooks.", "max_attempts", cfg.webhook_max_attempts, 1, 100);
+      if (w.contains("endpoints") && !w["endpoints"].is_array()) c.error("webhooks.endpoints", "must be an array");
+      std::set<std::string> names;
+      for (std::size_t i = 0; w.contains("endpoints") && w["endpoints"].is_array() && i < w["endpoints"].size(); ++i) {
+        const json& e = w["endpoints"][i];
+        const std::string at = "webhooks.endpoints[" + std::to_string(i) + "].";
+        if (!e.is_object()) {
+          c.error(at.substr(0, at.size() - 1), "must be an object {name, url, secret_file}");
+          continue;
+        }
+        c.known(e, at, {"name", "url", "secret_file"});
+        WebhookEndpoint ep;
+        c.string(e, at, "name", ep.name);
+        c.string(e, at, "url", ep.url);
+        c.string(e, at, "secret_file", ep.secret_file);
+        static const std::regex name_re("[A-Za-z0-9_-][A-Za-z0-9._-]{0,63}");
+        if (!std::regex_match(ep.name, name_re)) c.error(at + "name", "must be 1-64 letters, digits, '.', '_' or '-'");
+        else if (!names.insert(ep.name).second) c.error(at + "name", "is used by another endpoint");
+        if (ep.url.rfind("http://", 0) != 0 && ep.url.rfind("https://", 0) != 0)
+          c.error(at + "url", "must be an http:// or https:// URL");
+        if (ep.url.find_first_of(" \t\r\n") != std::string::npos) c.error(at + "url", "must not contain white space");
+        if (ep.secret_file.empty()) {
+          c.error(at + "secret_file", "missing (required): a file of whsec_ secrets (meshmark webhook secret)");
+        } else {
+          fs::path p(ep.secret_file);
+          if (p.is_relative() && !base_dir.empty()) p = fs::path(base_dir) / p;
+          ep.secret_file = p.lexically_normal().string();
+        }
+        cfg.webhooks.push_back(ep);
+      }
+    }
+  }
   if (j.contains("evidence")) {
     const json& e = j["evidence"];
     if (!e.is_object()) {
@@ -370,6 +409,12 @@ std::map<std::string, std::string> flatten(const Config& c) {
           {"max_input_bytes", std::to_string(c.max_input_bytes)},
           {"max_triangles", std::to_string(c.max_triangles)},
           {"http.listen", c.http_listen},
+          {"webhooks.endpoints", [&] {
+             std::string v;
+             for (const auto& e : c.webhooks) v += (v.empty() ? "" : ", ") + e.name + "=" + e.url;
+             return v;
+           }()},
+          {"webhooks.max_attempts", std::to_string(c.webhook_max_attempts)},
           {"http.threads", std::to_string(c.http_threads)},
           {"http.max_body_bytes", std::to_string(c.http_max_body_bytes)},
           {"evidence.auto", c.evidence_auto ? "true" : "false"},

@@ -15,6 +15,14 @@ struct ConfigError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A receiver of job notifications (docs/api.md, Webhooks): signed with every secret in its
+// secret_file (one "whsec_..." per line; two during a rotation).
+struct WebhookEndpoint {
+  std::string name;  // [A-Za-z0-9._-]{1,64}, unique; names its delivery jobs
+  std::string url;   // http:// or https://
+  std::string secret_file;
+};
+
 struct Config {
   std::string source;  // the file it came from ("" for defaults)
   // Paths (relative ones are resolved against the config file's folder).
@@ -73,6 +81,10 @@ struct Config {
   std::string http_listen;
   int http_threads = 4;
   int http_max_body_bytes = 1 << 20;
+  // webhooks.endpoints: the only places notifications go (no request can add one);
+  // webhooks.max_attempts: deliveries tried with backoff before the delivery job fails.
+  std::vector<WebhookEndpoint> webhooks;
+  int webhook_max_attempts = 10;
   // Logging.
   std::string log_level = "info";  // trace debug info warn error critical off
   std::string log_file;            // "" = stderr (journald under systemd)

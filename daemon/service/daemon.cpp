@@ -1,10 +1,13 @@
 #include "service/daemon.h"
+#include "service/systemd_notify.h"
+#include "service/webhooks.h"
 
 #include <poll.h>
 #include <signal.h>
 #include <sys/signalfd.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -228,6 +231,15 @@ void Daemon::check_inflight() {
   }
 }
 
+void Daemon::deliver_webhooks(const Config& cfg) {
+  try {
+    if (int n = dispatch_webhooks(*store_, cfg); n > 0 && !cfg.webhooks.empty())
+      spdlog::info("{} job event(s) queued for {} webhook endpoint(s)", n, cfg.webhooks.size());
+  } catch (const std::exception& e) {
+    spdlog::warn("webhooks: {}", e.what());
+  }
+}
+
 void Daemon::start_api() {
   auto cfg = config();
   if (cfg->http_listen.empty()) return;
@@ -278,13 +290,25 @@ int Daemon::run() {
                reaped ? ", " + std::to_string(reaped) + " expired leases reaped" : "");
   pool_->start();
   start_api();
+  // Under systemd (Type=notify): ready once the workers and the API are up; the watchdog is fed
+  // from this loop, so a main loop that hangs gets the daemon restarted.
+  notify_systemd("READY=1\nSTATUS=serving: " + std::to_string(cfg->workers) + " workers" +
+                 (http_ ? ", API on " + http_->address() : std::string()));
+  const auto watchdog = watchdog_interval();
+  auto fed = std::chrono::steady_clock::now();
 
   bool stopping = false;
   while (!stopping) {
     cfg = config();
     struct pollfd fds[2] = {{sfd, POLLIN, 0}, {watcher_->fd(), POLLIN, 0}};
     int nfds = watcher_->fd() >= 0 ? 2 : 1;
-    ::poll(fds, static_cast<nfds_t>(nfds), cfg->poll_interval_ms);
+    int timeout = cfg->poll_interval_ms;
+    if (watchdog.count() > 0) timeout = static_cast<int>(std::min<long long>(timeout, watchdog.count()));
+    ::poll(fds, static_cast<nfds_t>(nfds), timeout);
+    if (watchdog.count() > 0 && std::chrono::steady_clock::now() - fed >= watchdog) {
+      notify_systemd("WATCHDOG=1");
+      fed = std::chrono::steady_clock::now();
+    }
     struct signalfd_siginfo si;
     while (::read(sfd, &si, sizeof si) == static_cast<ssize_t>(sizeof si)) {
       if (si.ssi_signo == SIGHUP) {
@@ -299,9 +323,11 @@ int Daemon::run() {
     if (stopping) break;
     for (const auto& item : watcher_->poll(now_ms())) handle_drop(item);
     check_inflight();
+    deliver_webhooks(*cfg);
   }
 
   cfg = config();
+  notify_systemd("STOPPING=1");
   if (http_) http_->stop();  // requests in progress finish; no new ones
   pool_->stop_claiming();
   auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(cfg->shutdown_grace_seconds);
@@ -355,6 +381,7 @@ BatchSummary Daemon::run_until_empty(bool scan_drops, bool progress) {
   pool_->join();
   if (tty) std::cerr << "\r" << std::string(60, ' ') << "\r" << std::flush;
   check_inflight();
+  deliver_webhooks(*cfg);  // queued here, sent by the next run or the resident daemon
   s.pool = pool_->stats();
   s.counts = store_->counts();
   return s;

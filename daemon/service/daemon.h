@@ -45,7 +45,8 @@ class Daemon {
   void handle_drop(const DropItem& item);
   void check_inflight();
   void finalize(const DropItem& item, const store::Job& job);
-  void start_api();  // when http.listen is set: its own store connection, then the server
+  void start_api();
+  void deliver_webhooks(const Config& cfg);  // job events -> webhook delivery jobs  // when http.listen is set: its own store connection, then the server
 
   mutable std::mutex cfg_m_;
   std::shared_ptr<const Config> cfg_;

@@ -1,4 +1,5 @@
 #include "service/handlers.h"
+#include "service/webhooks.h"
 
 #include <chrono>
 #include <sodium.h>
@@ -668,8 +669,7 @@ store::JobRecords run_evidence(store::Store& st, const store::Job& job, const Ha
   o.chromium = cfg.evidence_pdf ? "" : "none";
   o.tsa_url = cfg.tsa_url;
   o.tsa_ca_file = cfg.tsa_ca_file;
-  const std::string case_id = "MM-" + std::to_string(det->id) + "-" + det->suspect_sha256.substr(0, 12);
-  const std::string out = (fs::path(cfg.output_dir) / "evidence" / case_id).string();
+  const std::string out = evidence_package_dir(cfg, *det).string();
   json result{{"detection_id", det->id}, {"package", out}};
   store::JobRecords rec;
   if (fs::exists(out / fs::path("statement.dsse.json"))) {
@@ -703,8 +703,14 @@ HandlerMap default_handlers() {
   m["detect"] = [contexts](store::Store& st, const store::Job& job, const HandlerContext& ctx) {
     return run_detect(st, job, ctx, contexts.get());
   };
+  m["webhook"] = run_webhook;
   m["noop"] = [](store::Store&, const store::Job&, const HandlerContext&) { return store::JobRecords{}; };
   return m;
+}
+
+std::filesystem::path evidence_package_dir(const Config& cfg, const store::Detection& det) {
+  const std::string case_id = "MM-" + std::to_string(det.id) + "-" + det.suspect_sha256.substr(0, 12);
+  return fs::path(cfg.output_dir) / "evidence" / case_id;
 }
 
 store::EnqueueResult submit_protect(store::Store& st, const std::string& customer, const std::string& path,

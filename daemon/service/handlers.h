@@ -13,6 +13,7 @@
 // retried with backoff up to max_attempts.
 #pragma once
 #include <cstddef>
+#include <filesystem>
 #include <functional>
 #include <map>
 #include <mutex>
@@ -74,6 +75,8 @@ store::JobRecords run_protect(store::Store& st, const store::Job& job, const Han
 // evidence: {"detect_job": <id>}: the package of that job's detection, written to
 // <output_dir>/evidence/<case id>/ (service/evidence_package.h). Enqueued by detect jobs that
 // attribute when evidence.auto is set.
+// Where the evidence job writes a detection's package: <output_dir>/evidence/MM-<id>-<12 hex>/.
+std::filesystem::path evidence_package_dir(const Config& cfg, const store::Detection& det);
 store::JobRecords run_evidence(store::Store& st, const store::Job& job, const HandlerContext& ctx);
 // contexts: where resynchronisation contexts are kept between uses (null: built for each use).
 store::JobRecords run_detect(store::Store& st, const store::Job& job, const HandlerContext& ctx,

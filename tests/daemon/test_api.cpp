@@ -15,6 +15,7 @@
 
 #include "http/server.h"
 #include "service/api.h"
+#include "service/handlers.h"
 #include "store/store.h"
 
 namespace {
@@ -343,6 +344,12 @@ TEST_F(ApiTest, TheOpenApiDocumentIsTheRouteTableAndEachRouteAnswersAsDocumented
   dr.detections.push_back(d);
   ASSERT_EQ(st->claim("w", 60000, {"detect"})->id, detect);
   st->complete(detect, "w", dr);
+  // Its evidence package, as the evidence job writes it.
+  cfg->output_dir = (dir / "out").string();
+  const fs::path package = service::evidence_package_dir(*cfg, *st->detection_of_job(detect));
+  fs::create_directories(package);
+  std::ofstream(package / "statement.json") << "{}";
+  std::ofstream(package / "statement.dsse.json") << "{}";
   const auto queued = enqueue("detect", "q");
   const auto cancelled = enqueue("detect", "c");
   st->cancel(cancelled);
@@ -350,7 +357,7 @@ TEST_F(ApiTest, TheOpenApiDocumentIsTheRouteTableAndEachRouteAnswersAsDocumented
   const auto id_for = [&](const std::string& method, const std::string& path) -> std::int64_t {
     if (path.find("/cancel") != std::string::npos) return queued;
     if (path.find("/retry") != std::string::npos) return cancelled;
-    if (path.find("/detection") != std::string::npos) return detect;
+    if (path.find("/detection") != std::string::npos || path.find("/evidence") != std::string::npos) return detect;
     (void)method;
     return protect;
   };
@@ -392,6 +399,50 @@ TEST_F(ApiTest, TheOpenApiDocumentIsTheRouteTableAndEachRouteAnswersAsDocumented
   }
 }
 
+TEST_F(ApiTest, TheEvidencePackageIsOneTarAndCanBeRequested) {
+  const std::string sha = upload("solid e\nendsolid e\n");
+  const Reply sub = call(port(), "POST", "/v1/jobs/detect", submitter, json{{"part", {{"sha256", sha}, {"name", "e.stl"}}}}.dump());
+  const auto id = sub.j["jobs"][0]["id"].get<std::int64_t>();
+  const std::string base = "/v1/jobs/" + std::to_string(id) + "/evidence";
+  EXPECT_EQ(call(port(), "GET", base, reader).status, 409) << "no verdict yet";
+  ASSERT_EQ(st->claim("w", 60000)->id, id);
+  store::JobRecords rec;
+  store::NewDetection d;
+  d.suspect_sha256 = sha;
+  d.suspect_name = "e.stl";
+  d.verdict = "attributed";
+  rec.detections.push_back(d);
+  st->complete(id, "w", rec);
+  const Reply none = call(port(), "GET", base, reader);
+  EXPECT_EQ(none.status, 404);
+  EXPECT_NE(none.j.value("detail", "").find("no evidence package yet"), std::string::npos);
+  EXPECT_EQ(call(port(), "POST", base, reader).status, 403);
+  const Reply asked = call(port(), "POST", base, submitter);
+  ASSERT_EQ(asked.status, 202) << asked.body;
+  EXPECT_EQ(asked.j["jobs"][0]["kind"], "evidence");
+  EXPECT_EQ(call(port(), "POST", base, submitter).j["jobs"][0]["id"], asked.j["jobs"][0]["id"]) << "asked twice, one job";
+
+  cfg->output_dir = (dir / "out").string();
+  const fs::path package = service::evidence_package_dir(*cfg, *st->detection_of_job(id));
+  fs::create_directories(package);
+  std::ofstream(package / "statement.json") << "{\"case\": 1}";
+  std::ofstream(package / "statement.dsse.json") << "{}";
+  std::ofstream(package / "report.html") << "<html></html>";
+  const Reply tar = call(port(), "GET", base, reader);
+  ASSERT_EQ(tar.status, 200) << tar.body;
+  EXPECT_EQ(tar.header("Content-Type"), "application/x-tar");
+  const fs::path got = dir / "got.tar";
+  std::ofstream(got, std::ios::binary) << tar.body;
+  const std::string listing_file = (dir / "listing.txt").string();
+  ASSERT_EQ(std::system(("tar -tf " + got.string() + " > " + listing_file).c_str()), 0);
+  std::ifstream listing(listing_file);
+  const std::string names((std::istreambuf_iterator<char>(listing)), {});
+  EXPECT_NE(names.find(package.filename().string() + "/statement.dsse.json"), std::string::npos) << names;
+  EXPECT_NE(names.find(package.filename().string() + "/report.html"), std::string::npos) << names;
+  EXPECT_EQ(call(port(), "GET", base, reader).body, tar.body) << "the same package, the same bytes";
+  EXPECT_EQ(call(port(), "GET", base, reader, "", "If-None-Match: " + tar.header("ETag") + "\r\n").status, 304);
+}
+
 TEST_F(ApiTest, MetricsCountJobsByStateAndPassPromtool) {
   const std::string sha = upload("solid m\nendsolid m\n");
   const Reply sub = call(port(), "POST", "/v1/jobs/detect", submitter, json{{"part", {{"sha256", sha}, {"name", "m.stl"}}}}.dump());
@@ -420,6 +471,55 @@ TEST_F(ApiTest, MetricsCountJobsByStateAndPassPromtool) {
   const int rc = std::system(cmd.c_str());
   std::ifstream log(dir / "promtool.log");
   EXPECT_EQ(rc, 0) << std::string((std::istreambuf_iterator<char>(log)), {});
+}
+
+}  // namespace
+
+namespace {
+
+// The status page in headless Chromium (Debian's chromium): with an admin token given as
+// /#token=..., the counts and a failure's reason are in the DOM, and a screenshot is taken.
+TEST_F(ApiTest, TheStatusPageShowsCountsAndFailuresInChromium) {
+  const std::string sha = upload("solid s\nendsolid s\n");
+  call(port(), "POST", "/v1/jobs/detect", submitter, json{{"part", {{"sha256", sha}, {"name", "broken.stl"}}}}.dump());
+  const auto j = st->claim("w", 60000);
+  ASSERT_TRUE(j);
+  st->fail(j->id, "w", "broken.stl: not a mesh (no facet)", false);
+  const std::string sha2 = upload("solid t\nendsolid t\n");
+  call(port(), "POST", "/v1/jobs/detect", submitter, json{{"part", {{"sha256", sha2}, {"name", "waiting.stl"}}}}.dump());
+
+  const Reply page = call(port(), "GET", "/", "");
+  ASSERT_EQ(page.status, 200);
+  EXPECT_EQ(page.header("Content-Type"), "text/html; charset=utf-8");
+  EXPECT_NE(page.header("Content-Security-Policy").find("frame-ancestors 'none'"), std::string::npos);
+  EXPECT_EQ(page.header("Access-Control-Allow-Origin"), "") << "no cross-site reads";
+  EXPECT_EQ(page.body.find("mmt_"), std::string::npos) << "the page holds no token and no data";
+
+  std::string browser;
+  for (const char* b : {"chromium", "chromium-browser"})
+    if (std::system(("command -v " + std::string(b) + " >/dev/null 2>&1").c_str()) == 0) browser = b;
+  if (browser.empty()) {
+    if (const char* ci = std::getenv("CI"); ci && std::string(ci) == "true") FAIL() << "chromium is not installed";
+    GTEST_SKIP() << "chromium is not installed";
+  }
+  const std::string url = "http://127.0.0.1:" + std::to_string(port()) + "/#token=" + admin;
+  const std::string flags = " --headless --no-sandbox --disable-gpu --no-first-run --disable-background-networking "
+                            "--user-data-dir=" + (dir / "profile").string() + " --virtual-time-budget=10000 ";
+  const fs::path dom = dir / "dom.html", shot = dir / "status.png";
+  ASSERT_EQ(std::system(("timeout 120 " + browser + flags + "--dump-dom '" + url + "' > " + dom.string() + " 2>/dev/null").c_str()), 0);
+  std::ifstream in(dom);
+  const std::string html((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_NE(html.find("broken.stl: not a mesh (no facet)"), std::string::npos) << html.substr(0, 3000);
+  EXPECT_NE(html.find("id=\"count-failed\"><b>1</b>failed"), std::string::npos) << html.substr(0, 3000);
+  EXPECT_NE(html.find("id=\"count-queued\"><b>1</b>queued"), std::string::npos);
+  EXPECT_NE(html.find("token ops (admin)"), std::string::npos);
+  EXPECT_NE(html.find(">retry</button>"), std::string::npos) << "an admin may retry the failed job";
+  ASSERT_EQ(std::system(("timeout 120 " + browser + flags + "--window-size=1200,900 --screenshot=" + shot.string() + " '" + url +
+                         "' >/dev/null 2>&1").c_str()),
+            0);
+  ASSERT_TRUE(fs::exists(shot));
+  EXPECT_GT(fs::file_size(shot), 10000u);
+  if (const char* keep = std::getenv("MESHMARK_KEEP_SCREENSHOT")) fs::copy_file(shot, keep, fs::copy_options::overwrite_existing);
 }
 
 }  // namespace

@@ -4,17 +4,24 @@
 // every job done exactly once, drain on SIGTERM, reload on SIGHUP, and batch with
 // `meshmark run --until-empty`.
 #include <gtest/gtest.h>
+#include <poll.h>
 #include <signal.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/un.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <iostream>
 #include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <set>
@@ -27,6 +34,8 @@
 #include "cad/tessellate.h"
 #include "meshio/read_mesh.h"
 #include "quality/surface_distance.h"
+#include "http/server.h"
+#include "service/webhooks.h"
 #include "store/home.h"
 #include "support/sha256.h"
 #include "store/sqlite_db.h"
@@ -962,70 +971,283 @@ std::string output_of_command(const std::string& cmd) {
   return out;
 }
 
-// A PDM client's whole round trip over the HTTP API of a running meshmarkd, with curl on its Unix
-// socket: a token from `meshmark token create`, the part uploaded, a protect job submitted twice
-// with one Idempotency-Key (one job), polled to success, the copy downloaded and checked against
-// its ETag, then the copy submitted for detection and its verdict read: the customer is named.
-TEST_F(E2E, AnApiClientProtectsDownloadsAndTracesAPart) {
+// A free TCP port on loopback (bound, read, released).
+int free_port() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+  socklen_t n = sizeof a;
+  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &n);
+  ::close(fd);
+  return ntohs(a.sin_port);
+}
+
+// Debian's nginx running the shipped front config (config/nginx-meshmark.conf) with only its
+// paths, port and certificates replaced: TLS with client certificates, proxied to the daemon's
+// Unix socket. The certificates come from a throwaway CA made with openssl.
+struct NginxFront {
+  pid_t pid = -1;
+  int port = 0;
+  fs::path dir;
+  ~NginxFront() {
+    if (pid > 0) {
+      ::kill(pid, SIGQUIT);
+      int st = 0;
+      ::waitpid(pid, &st, 0);
+    }
+  }
+  // "" when started; otherwise why not.
+  std::string start(const fs::path& where, const std::string& socket_path) {
+    dir = where;
+    const fs::path tls = dir / "tls";
+    fs::create_directories(tls);
+    fs::create_directories(dir / "temp");
+    const std::string make_certs =
+        "cd " + tls.string() + " && set -e && "
+        "openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -keyout ca.key -out clients-ca.crt "
+        "-days 2 -subj /CN=meshmark-test-ca && "
+        "printf 'subjectAltName=DNS:localhost,IP:127.0.0.1\\n' > san.ext && "
+        "for who in server client; do "
+        "openssl req -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -keyout $who.key -out $who.csr -subj /CN=$who && "
+        "openssl x509 -req -in $who.csr -CA clients-ca.crt -CAkey ca.key -CAcreateserial -out $who.crt -days 2 "
+        "-extfile san.ext; done > openssl.log 2>&1";
+    if (std::system(make_certs.c_str()) != 0) return "openssl failed: " + slurp(tls / "openssl.log");
+    port = free_port();
+    std::string site = slurp(MESHMARK_NGINX_CONF);
+    const auto replace = [&](const std::string& from, const std::string& to) {
+      const auto at = site.find(from);
+      if (at == std::string::npos) return false;
+      site.replace(at, from.size(), to);
+      return true;
+    };
+    if (!replace("listen 443 ssl http2;", "listen 127.0.0.1:" + std::to_string(port) + " ssl http2;") ||
+        !replace("server unix:/run/meshmark/api.sock;", "server unix:" + socket_path + ";"))
+      return "config/nginx-meshmark.conf no longer has the lines this test replaces";
+    for (std::size_t at; (at = site.find("/etc/meshmark/tls/")) != std::string::npos;)
+      site.replace(at, 18, tls.string() + "/");
+    std::ofstream(dir / "meshmark.conf") << site;
+    const std::string d = dir.string();
+    std::ofstream(dir / "nginx.conf") << (::geteuid() == 0 ? "user root;\n" : "") << "worker_processes 1;\npid " << d
+                                      << "/nginx.pid;\nerror_log " << d << "/error.log;\nevents { worker_connections 64; }\n"
+                                      << "http {\n  access_log " << d << "/access.log;\n  client_body_temp_path " << d
+                                      << "/temp/body;\n  proxy_temp_path " << d << "/temp/proxy;\n  fastcgi_temp_path " << d
+                                      << "/temp/fastcgi;\n  uwsgi_temp_path " << d << "/temp/uwsgi;\n  scgi_temp_path " << d
+                                      << "/temp/scgi;\n  include " << d << "/meshmark.conf;\n}\n";
+    pid = ::fork();
+    if (pid == 0) {
+      const std::string conf = d + "/nginx.conf", err = d + "/error.log";
+      FILE* f = std::freopen((d + "/nginx.stderr").c_str(), "a", stderr);
+      (void)f;
+      ::execl("/usr/sbin/nginx", "nginx", "-p", d.c_str(), "-e", err.c_str(), "-c", conf.c_str(), "-g", "daemon off;",
+              static_cast<char*>(nullptr));
+      std::_Exit(127);
+    }
+    return "";
+  }
+  // curl with the client's certificate, trusting only the test CA.
+  std::string curl() const {
+    const std::string t = (dir / "tls").string();
+    return "curl -s --cacert " + t + "/clients-ca.crt --cert " + t + "/client.crt --key " + t + "/client.key ";
+  }
+  std::string url(const std::string& path) const { return "https://localhost:" + std::to_string(port) + path; }
+  std::string log() const { return slurp(dir / "error.log") + slurp(dir / "nginx.stderr"); }
+};
+
+// What a PDM integration does, through the documented nginx front with TLS and a client
+// certificate: a token from `meshmark token create`, the part uploaded, protect for three
+// customers submitted twice with one Idempotency-Key (no second copy), polled to success, the
+// copies downloaded and checked against their ETags, one copy uploaded as a leak and detected, the
+// verdict and the signed evidence package fetched, and every signed webhook verified.
+TEST_F(E2E, AnApiClientThroughNginxWithTlsProtectsDownloadsAndTracesAPart) {
   MM_REQUIRE_SHARED_MESHES();
+  if (!fs::exists("/usr/sbin/nginx")) {
+    const char* ci = std::getenv("CI");
+    if (ci && std::string(ci) == "true") FAIL() << "nginx absent: scripts/install-deps.sh installs it";
+    GTEST_SKIP() << "nginx absent (apt-get install nginx-light, or scripts/install-deps.sh)";
+  }
+  store()->add_customer("gamma", "test");
   const std::string sock = (dir / "api.sock").string();
-  write_config({{"output_format", "stl"}, {"watermark", {{"message_bits", 16}}}, {"http", {{"listen", "unix:" + sock}}}});
+  // The PDM system's webhook receiver: every notification as received, body and headers.
+  struct Hook {
+    std::string id, timestamp, signature, body;
+  };
+  std::mutex hooks_m;
+  std::vector<Hook> hooks;
+  mm::http::Routes receive;
+  receive.upload_dir = dir.string();
+  receive.handle = [&](mm::http::Request& r) {
+    std::lock_guard<std::mutex> l(hooks_m);
+    hooks.push_back({r.header("webhook-id"), r.header("webhook-timestamp"), r.header("webhook-signature"), r.body});
+    return mm::http::Response{};
+  };
+  mm::http::Server receiver(mm::http::parse_listen("127.0.0.1:0"), mm::http::Limits{}, receive);
+  receiver.start();
+  const fs::path secret_file = dir / "pdm.secret";
+  std::ofstream(secret_file) << mm::service::new_webhook_secret() << "\n";
+  fs::permissions(secret_file, fs::perms::owner_read | fs::perms::owner_write);
+  write_config({{"output_format", "stl"},
+                {"watermark", {{"message_bits", 16}}},
+                {"evidence", {{"auto", true}, {"pdf", false}}},
+                {"http", {{"listen", "unix:" + sock}}},
+                {"webhooks", {{"endpoints", {{{"name", "pdm"},
+                                              {"url", "http://127.0.0.1:" + std::to_string(receiver.port()) + "/meshmark"},
+                                              {"secret_file", secret_file.string()}}}}}}});
   const json created = json::parse(output_of_command(std::string(MESHMARK_EXE) + " token create pdm --role submit --json --home " +
                                                      home.string()));
   const std::string token = created.value("token", "");
   ASSERT_EQ(token.size(), 68u) << created.dump();
   Daemon d = start();
   ASSERT_TRUE(wait_for([&] { return fs::exists(sock); }, 20s)) << log();
-  const std::string curl = "curl -s --unix-socket " + sock + " -H 'Authorization: Bearer " + token + "' ";
-  const auto get = [&](const std::string& path) { return json::parse(output_of_command(curl + "http://api" + path), nullptr, false); };
+  NginxFront nginx;
+  const std::string why = nginx.start(dir / "nginx", sock);
+  ASSERT_EQ(why, "");
+  const std::string curl = nginx.curl() + "-H 'Authorization: Bearer " + token + "' ";
+  ASSERT_TRUE(wait_for([&] { return output_of_command(curl + nginx.url("/healthz")).find("ok") != std::string::npos; }, 20s))
+      << nginx.log();
+  // TLS alone is not enough: without the client certificate nginx answers 400 and never proxies.
+  EXPECT_EQ(output_of_command("curl -s -o /dev/null -w '%{http_code}' --cacert " + (dir / "nginx/tls/clients-ca.crt").string() +
+                              " " + nginx.url("/healthz")),
+            "400");
+  const auto get = [&](const std::string& path) { return json::parse(output_of_command(curl + nginx.url(path)), nullptr, false); };
   const auto wait_job = [&](long long id) {
     json j;
     wait_for([&] {
       j = get("/v1/jobs/" + std::to_string(id));
       return j.value("state", "") == "succeeded" || j.value("state", "") == "failed";
-    }, 180s);
+    }, 240s);
     return j;
   };
 
-  const json part = json::parse(output_of_command(curl + "--data-binary @" + mm::test::shared_mesh("abc7.stl") +
-                                                  " 'http://api/v1/parts?name=abc7.stl'"));
+  const json part = json::parse(output_of_command(curl + "--data-binary @" + mm::test::shared_mesh("abc7.stl") + " '" +
+                                                  nginx.url("/v1/parts?name=abc7.stl") + "'"));
   ASSERT_EQ(part.value("sha256", ""), mm::support::sha256_file_hex(mm::test::shared_mesh("abc7.stl"))) << part.dump();
-  const std::string body = json{{"part", {{"sha256", part["sha256"]}, {"name", "abc7.stl"}}}, {"customers", {"beta"}}}.dump();
+  const std::string body =
+      json{{"part", {{"sha256", part["sha256"]}, {"name", "abc7.stl"}}}, {"customers", {"alpha", "beta", "gamma"}}}.dump();
   const std::string post = curl + "-H 'Idempotency-Key: \"nightly-1\"' -H 'Content-Type: application/json' -d '" + body + "' ";
-  const json first = json::parse(output_of_command(post + "http://api/v1/jobs/protect"));
-  const json again = json::parse(output_of_command(post + "http://api/v1/jobs/protect"));
-  ASSERT_EQ(first["jobs"].size(), 1u) << first.dump();
-  EXPECT_EQ(again["jobs"][0]["id"], first["jobs"][0]["id"]);
-  const long long id = first["jobs"][0]["id"].get<long long>();
-  const json done = wait_job(id);
-  ASSERT_EQ(done.value("state", ""), "succeeded") << done.dump() << log();
-  EXPECT_EQ(done["customer"], "beta");
+  const json first = json::parse(output_of_command(post + nginx.url("/v1/jobs/protect")));
+  const json again = json::parse(output_of_command(post + nginx.url("/v1/jobs/protect")));
+  ASSERT_EQ(first["jobs"].size(), 3u) << first.dump();
+  ASSERT_EQ(again["jobs"].size(), 3u) << again.dump();
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(again["jobs"][k]["id"], first["jobs"][k]["id"]) << "the same request again: the same jobs";
+    EXPECT_EQ(again["jobs"][k]["created"], false);
+  }
+  std::map<std::string, long long> job_of;
+  for (const auto& j : first["jobs"]) {
+    const json done = wait_job(j["id"].get<long long>());
+    ASSERT_EQ(done.value("state", ""), "succeeded") << done.dump() << log();
+    job_of[done["customer"].get<std::string>()] = j["id"].get<long long>();
+  }
+  ASSERT_EQ(job_of.size(), 3u);
+  EXPECT_EQ(store()->list_copies().size(), 3u) << "no second copy for the repeated request";
 
-  const fs::path copy = dir / "downloaded.stl";
-  const std::string headers = output_of_command(curl + "-D - -o " + copy.string() + " http://api/v1/jobs/" + std::to_string(id) + "/copy");
-  const std::string sha = mm::support::sha256_file_hex(copy.string());
-  EXPECT_EQ(sha, done["result"]["output_sha256"]);
-  EXPECT_NE(headers.find("ETag: \"" + sha + "\""), std::string::npos) << headers;
-  EXPECT_EQ(output_of_command(curl + "-o /dev/null -w '%{http_code}' -H 'If-None-Match: \"" + sha + "\"' http://api/v1/jobs/" +
-                              std::to_string(id) + "/copy"),
+  std::map<std::string, fs::path> copy_of;
+  for (const auto& [customer, id] : job_of) {
+    const fs::path copy = dir / ("downloaded-" + customer + ".stl");
+    const std::string headers = output_of_command(curl + "-D - -o " + copy.string() + " " +
+                                                  nginx.url("/v1/jobs/" + std::to_string(id) + "/copy"));
+    const std::string sha = mm::support::sha256_file_hex(copy.string());
+    EXPECT_EQ(sha, get("/v1/jobs/" + std::to_string(id))["result"]["output_sha256"]) << customer;
+    EXPECT_NE(headers.find("\"" + sha + "\""), std::string::npos) << headers;
+    copy_of[customer] = copy;
+  }
+  EXPECT_EQ(output_of_command(curl + "-o /dev/null -w '%{http_code}' -H 'If-None-Match: \"" +
+                              mm::support::sha256_file_hex(copy_of["beta"].string()) + "\"' " +
+                              nginx.url("/v1/jobs/" + std::to_string(job_of["beta"]) + "/copy")),
             "304");
 
-  const json leak = json::parse(output_of_command(curl + "--data-binary @" + copy.string() + " 'http://api/v1/parts?name=leak.stl'"));
+  const json leak = json::parse(output_of_command(curl + "--data-binary @" + copy_of["beta"].string() + " '" +
+                                                  nginx.url("/v1/parts?name=leak.stl") + "'"));
   const json det = json::parse(output_of_command(curl + "-H 'Content-Type: application/json' -d '" +
                                                  json{{"part", {{"sha256", leak["sha256"]}, {"name", "leak.stl"}}}}.dump() +
-                                                 "' http://api/v1/jobs/detect"));
+                                                 "' " + nginx.url("/v1/jobs/detect")));
   const long long det_id = det["jobs"][0]["id"].get<long long>();
   ASSERT_EQ(wait_job(det_id).value("state", ""), "succeeded") << log();
   const json verdict = get("/v1/jobs/" + std::to_string(det_id) + "/detection");
   EXPECT_EQ(verdict["verdict"], "attributed") << verdict.dump().substr(0, 600);
   EXPECT_EQ(verdict["customer"], "beta");
   EXPECT_LT(verdict["p_value"].get<double>(), 1e-9);
+  // evidence.auto writes the package after the verdict; it is served once written.
+  const fs::path tar = dir / "evidence.tar";
+  const std::string evidence = curl + "-o " + tar.string() + " -w '%{http_code}' " +
+                               nginx.url("/v1/jobs/" + std::to_string(det_id) + "/evidence");
+  ASSERT_TRUE(wait_for([&] { return output_of_command(evidence) == "200"; }, 120s)) << slurp(tar) << log();
+  const std::string listing = output_of_command("tar -tf " + tar.string());
+  EXPECT_NE(listing.find("/statement.dsse.json"), std::string::npos) << listing;
+  EXPECT_NE(listing.find("/report.html"), std::string::npos) << listing;
+
+  // Notified without polling: a job.succeeded for each protect job, the detection and the
+  // evidence, each signed with the endpoint's secret over id.timestamp.body.
+  const auto secrets = mm::service::read_webhook_secrets(secret_file.string());
+  std::set<long long> notified;
+  EXPECT_TRUE(wait_for([&] {
+    std::lock_guard<std::mutex> l(hooks_m);
+    notified.clear();
+    for (const auto& h : hooks) {
+      const json j = json::parse(h.body, nullptr, false);
+      if (j.is_object() && j.value("type", "") == "job.succeeded") notified.insert(j["data"].value("job_id", 0LL));
+    }
+    return notified.size() >= 5;
+  }, 60s)) << log();
+  for (const auto& [customer, id] : job_of) EXPECT_TRUE(notified.count(id)) << customer;
+  EXPECT_TRUE(notified.count(det_id));
+  {
+    std::lock_guard<std::mutex> l(hooks_m);
+    for (const auto& h : hooks) {
+      EXPECT_EQ(h.signature, mm::service::webhook_signature(secrets, h.id, h.timestamp, h.body)) << h.body;
+      EXPECT_EQ(h.body.find(token.substr(4)), std::string::npos);
+    }
+  }
 
   ::kill(d.pid, SIGTERM);
   ASSERT_TRUE(d.wait_exit(60s));
   EXPECT_TRUE(WIFEXITED(d.status) && WEXITSTATUS(d.status) == 0);
   EXPECT_FALSE(fs::exists(sock)) << "the socket is removed at exit";
   EXPECT_EQ(log().find(token.substr(4)), std::string::npos) << "the token never reaches the log";
+  EXPECT_EQ(slurp(dir / "nginx/access.log").find(token.substr(4)), std::string::npos);
+}
+
+}  // namespace
+
+namespace {
+
+// Under systemd (Type=notify): READY=1 once serving, WATCHDOG=1 at half of WATCHDOG_USEC, and
+// STOPPING=1 on SIGTERM, as datagrams to $NOTIFY_SOCKET.
+TEST_F(E2E, TellsSystemdItIsReadyFeedsTheWatchdogAndSaysWhenItStops) {
+  const std::string path = (dir / "notify.sock").string();
+  const int fd = ::socket(AF_UNIX, SOCK_DGRAM, 0);
+  sockaddr_un sa{};
+  sa.sun_family = AF_UNIX;
+  std::strncpy(sa.sun_path, path.c_str(), sizeof sa.sun_path - 1);
+  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&sa), sizeof sa), 0);
+  ::setenv("NOTIFY_SOCKET", path.c_str(), 1);
+  ::setenv("WATCHDOG_USEC", "400000", 1);
+  Daemon d = start();
+  ::unsetenv("NOTIFY_SOCKET");
+  ::unsetenv("WATCHDOG_USEC");
+  std::vector<std::string> got;
+  const auto receive_until = [&](const std::string& prefix, std::chrono::seconds timeout) {
+    const auto end = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < end) {
+      struct pollfd p{fd, POLLIN, 0};
+      if (::poll(&p, 1, 100) <= 0) continue;
+      char buf[512];
+      const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+      if (n <= 0) continue;
+      got.emplace_back(buf, static_cast<std::size_t>(n));
+      if (got.back().rfind(prefix, 0) == 0) return true;
+    }
+    return false;
+  };
+  EXPECT_TRUE(receive_until("READY=1", 30s)) << log();
+  EXPECT_TRUE(receive_until("WATCHDOG=1", 5s));
+  EXPECT_TRUE(receive_until("WATCHDOG=1", 5s)) << "fed again";
+  ::kill(d.pid, SIGTERM);
+  EXPECT_TRUE(receive_until("STOPPING=1", 30s));
+  ASSERT_TRUE(d.wait_exit(60s));
+  ::close(fd);
 }
 
 }  // namespace
