@@ -9,7 +9,6 @@
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <random>
 #include <string>
 
 #include "geometry/triangle_distance_tree.h"
@@ -46,41 +45,79 @@ std::vector<Tri> triangles(const Mesh& mesh) {
   return out;
 }
 
-// Portable uniform [0, 1): the standard distributions differ between library versions.
-double uniform(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
 
 double diagonal_of(const Mesh& mesh) {
   if (mesh.num_vertices() == 0) return 0;
   return (mesh.points.colwise().maxCoeff() - mesh.points.colwise().minCoeff()).norm();
 }
 
+// splitmix64's output function: a well-mixed 64-bit value from any 64-bit input.
+std::uint64_t mix64(std::uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
 // sample_surface on the mesh's triangles (triangles(mesh)), for a caller that has them already.
+// Each triangle's samples are drawn from a stream seeded by its own corners and the seed, so the
+// samples are the same set whatever the order of the faces, the numbering of the vertices or the
+// corner a face starts at: a stream that reorders a surface measures as the surface itself.
 std::vector<Eigen::Vector3d> sample_triangles(const std::vector<Tri>& tris, const Mesh& mesh, int samples,
                                               std::uint64_t seed, bool include_vertices) {
-  std::mt19937_64 rng(seed);
   std::vector<Eigen::Vector3d> out;
   const std::size_t count = static_cast<std::size_t>(std::max(samples, 0));
-  out.reserve(count + (include_vertices ? mesh.num_vertices() : 0));
+  out.reserve(count + count / 16 + (include_vertices ? mesh.num_vertices() : 0));
+  // Corners are known by their coordinates on a grid of 2^-32 of the surface's extent: a
+  // surface decoded in another order, whose coordinates differ in their last bits, still orders
+  // each triangle's corners alike and draws the same samples.
+  Eigen::AlignedBox3d box;
+  for (const Tri& t : tris) box.extend(t.a), box.extend(t.b), box.extend(t.c);
+  const double extent = std::max(box.sizes().maxCoeff(), std::numeric_limits<double>::min());
+  const double grid = std::ldexp(1.0, std::ilogb(extent) - 32);
+  using Key = std::array<long long, 3>;
+  const auto key_of = [grid](const Eigen::Vector3d& p) {
+    return Key{std::llround(p[0] / grid), std::llround(p[1] / grid), std::llround(p[2] / grid)};
+  };
+  std::vector<std::array<Eigen::Vector3d, 3>> corners(tris.size());
+  std::vector<std::array<Key, 3>> keys(tris.size());
+  std::vector<double> areas(tris.size());
+  for (std::size_t i = 0; i < tris.size(); ++i) {
+    // The corners in the order of their keys: the same triangle whichever corner a face names first.
+    std::array<std::pair<Key, Eigen::Vector3d>, 3> c{{{key_of(tris[i].a), tris[i].a},
+                                                       {key_of(tris[i].b), tris[i].b},
+                                                       {key_of(tris[i].c), tris[i].c}}};
+    std::sort(c.begin(), c.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    for (int k = 0; k < 3; ++k) corners[i][k] = c[k].second, keys[i][k] = c[k].first;
+    areas[i] = 0.5 * (corners[i][1] - corners[i][0]).cross(corners[i][2] - corners[i][0]).norm();
+  }
+  // The total in ascending order: the same sum for any order of the faces.
+  std::vector<double> sorted = areas;
+  std::sort(sorted.begin(), sorted.end());
   double total = 0;
-  for (const Tri& t : tris) total += t.area;
-  // Systematic sampling: sample k sits at cumulative area (k + u0) / count * total, so every
-  // triangle gets its area's share of samples to within one.
-  const double u0 = uniform(rng);
-  double cumulative = 0;
-  std::size_t k = 0;
-  for (const Tri& t : tris) {
-    cumulative += t.area;
-    while (k < count && (static_cast<double>(k) + u0) / static_cast<double>(count) * total < cumulative) {
-      double r1 = uniform(rng), r2 = uniform(rng);
+  for (double a : sorted) total += a;
+  for (std::size_t i = 0; i < tris.size() && count > 0; ++i) {
+    const auto& c = corners[i];
+    std::uint64_t state = mix64(seed);
+    for (const Key& k : keys[i])
+      for (long long x : k) state = mix64(state ^ static_cast<std::uint64_t>(x));
+    const auto next = [&state] {
+      state = mix64(state);
+      return static_cast<double>(state >> 11) * 0x1.0p-53;
+    };
+    // Its area's share of the samples, rounded up or down at random: the count is `samples` on
+    // average, and each triangle's is within one of its share.
+    const double share = areas[i] / total * static_cast<double>(count);
+    const auto n = static_cast<std::size_t>(std::floor(share + next()));
+    for (std::size_t k = 0; k < n; ++k) {
+      double r1 = next(), r2 = next();
       if (r1 + r2 > 1) {
         r1 = 1 - r1;
         r2 = 1 - r2;
       }
-      out.push_back(t.a + r1 * (t.b - t.a) + r2 * (t.c - t.a));
-      ++k;
+      out.push_back(c[0] + r1 * (c[1] - c[0]) + r2 * (c[2] - c[0]));
     }
   }
-  for (; k < count; ++k) out.push_back(tris.back().c);  // rounding leftovers, if any
   if (include_vertices) {
     std::vector<char> used(mesh.num_vertices(), 0);
     for (const auto& f : mesh.faces)

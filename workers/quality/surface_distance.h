@@ -14,7 +14,7 @@
 namespace mm {
 
 struct SamplingParams {
-  int samples = 200000;        // area-weighted samples per surface, besides its vertices
+  int samples = 200000;        // area-weighted samples per surface (on average), besides its vertices
   std::uint64_t seed = 1;      // same seed, same samples, same numbers
   bool include_vertices = true;
 };
@@ -36,8 +36,11 @@ struct SurfaceDistance {
   double mean_relative() const { return mean / diagonal; }
 };
 
-// Area-weighted points on the surface: systematic sampling along the cumulative face area from a
-// seeded offset, uniform within each triangle. Polygons are split into fans. Throws
+// Area-weighted points on the surface: each triangle gets its area's share of `samples`, rounded
+// up or down at random, uniform within it, drawn from a stream seeded by the seed and the
+// triangle's own corners, so the same surface gives the same set of samples whatever the order of
+// its faces, the numbering of its vertices or the corner each face starts at. Polygons are split
+// into fans (so a polygon's surface itself depends on its first corner). Throws
 // InputError("quality", reason) when the mesh has no face of positive area or bad indices or
 // coordinates.
 std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, int samples, std::uint64_t seed,
