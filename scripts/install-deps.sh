@@ -7,7 +7,7 @@ PKGS=(
   libeigen3-dev libopenmesh-dev libosd-dev libsqlite3-dev sqlite3
   nlohmann-json3-dev libspdlog-dev libcli11-dev libsodium-dev zlib1g-dev
   libcgal-dev libboost-dev libspectra-dev libgtest-dev libgmock-dev libbenchmark-dev
-  lib3mf-dev libtinygltf-dev libdraco-dev libocct-data-exchange-dev libocct-modeling-algorithms-dev libpng-dev draco python3 jq time openssl curl nginx-light chromium prometheus clang libclang-rt-14-dev
+  lib3mf-dev libtinygltf-dev libdraco-dev libocct-data-exchange-dev libocct-modeling-algorithms-dev libpng-dev draco python3 jq time openssl curl nginx-light postgresql-15 libpq-dev chromium prometheus clang libclang-rt-14-dev
 )
 missing=()
 for p in "${PKGS[@]}"; do

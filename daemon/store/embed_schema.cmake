@@ -1,8 +1,12 @@
-# cmake -DSCHEMA_DIR=<dir> -DOUT=<file.cpp> -P embed_schema.cmake
-# Writes a C++ file defining mm::store::embedded_migrations() from SCHEMA_DIR/NNNN_name.sql.
+# cmake -DSCHEMA_DIR=<dir> -DOUT=<file.cpp> [-DFUNCTION=<name>] -P embed_schema.cmake
+# Writes a C++ file defining mm::store::<FUNCTION>() (default embedded_migrations) from
+# SCHEMA_DIR/NNNN_name.sql.
+if(NOT FUNCTION)
+  set(FUNCTION embedded_migrations)
+endif()
 file(GLOB sql_files RELATIVE ${SCHEMA_DIR} ${SCHEMA_DIR}/*.sql)
 list(SORT sql_files)
-set(body "// Generated from schema/*.sql by daemon/store/embed_schema.cmake. Do not edit.\n#include \"store/migrations.h\"\n\nnamespace mm::store {\n\nconst std::vector<Migration>& embedded_migrations() {\n  static const std::vector<Migration> m = {\n")
+set(body "// Generated from schema/*.sql by daemon/store/embed_schema.cmake. Do not edit.\n#include \"store/migrations.h\"\n\nnamespace mm::store {\n\nconst std::vector<Migration>& ${FUNCTION}() {\n  static const std::vector<Migration> m = {\n")
 set(last -1)
 foreach(f ${sql_files})
   if(NOT f MATCHES "^([0-9][0-9][0-9][0-9])_[A-Za-z0-9_]+\\.sql$")

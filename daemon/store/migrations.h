@@ -1,5 +1,6 @@
 // Schema migrations embedded into the binary at build time from schema/NNNN_name.sql (generated
-// by daemon/store/embed_schema.cmake), so an installed meshmark needs no schema folder.
+// and schema/postgres/NNNN_name.sql by daemon/store/embed_schema.cmake), so an installed meshmark
+// needs no schema folder.
 #pragma once
 #include <vector>
 
@@ -12,5 +13,7 @@ struct Migration {
 };
 
 const std::vector<Migration>& embedded_migrations();  // sorted by version
+// schema/postgres/NNNN_name.sql: the same migrations in PostgreSQL's dialect (the same versions).
+const std::vector<Migration>& embedded_postgres_migrations();
 
 }  // namespace mm::store
