@@ -5,7 +5,9 @@
 # STEP part, compress, watermark, write the .mmc stream and the decoded mesh), leaks bob's decoded
 # copy and alice's copy of the STEP part with noise, drops them and an unmarked original into
 # detect/ and prints the verdicts, and the signed evidence package the daemon writes
-# for the attribution (verified); then stops the daemon with SIGTERM (drain).
+# for the attribution (verified); a PDM system's round trip over the HTTP API (a token, an upload,
+# protect for carol sent twice with one Idempotency-Key, polled, the copy downloaded); then stops
+# the daemon with SIGTERM (drain).
 # DEMO_DIR=folder keeps everything there (default: a fresh temporary folder, printed at the end).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -44,12 +46,14 @@ echo "== home, customers, configuration ($D)"
 "$MM" init --home "$D/home"
 "$MM" customer add alice --home "$D/home"
 "$MM" customer add bob --home "$D/home"
+"$MM" customer add carol --home "$D/home"
 cat >"$D/meshmarkd.json" <<EOF
 {
   "home": "home", "drop_dir": "drop", "output_dir": "out",
   "workers": 2, "poll_interval_ms": 200, "settle_ms": 500,
   "output_format": "stl",
   "evidence": {"auto": true},
+  "http": {"listen": "unix:$D/api.sock"},
   "log_file": "meshmarkd.log"
 }
 EOF
@@ -137,6 +141,25 @@ ls "$pkg"
 "$BUILD/daemon/meshmark" evidence pubkey --home "$D/home" >"$D/signing-public-key.txt"
 "$BUILD/daemon/meshmark" verify "$pkg" --pubkey "$D/signing-public-key.txt" --file "$D/parts/leak.stl" | tail -n 2
 echo "open $pkg/report.html in a browser"
+
+echo "== a PDM system over the HTTP API (docs/api.md): carol's copy of plate_with_holes"
+token=$("$MM" token create pdm --role submit --json --home "$D/home" | python3 -c 'import json,sys; print(json.load(sys.stdin)["token"])')
+api() { curl -sS --unix-socket "$D/api.sock" -H "Authorization: Bearer $token" "$@"; }
+sha=$(api --data-binary @"$D/parts/plate_with_holes.off" 'http://meshmark/v1/parts?name=plate_with_holes.off' |
+      python3 -c 'import json,sys; print(json.load(sys.stdin)["sha256"])')
+body="{\"part\": {\"sha256\": \"$sha\", \"name\": \"plate_with_holes.off\"}, \"customers\": [\"carol\"]}"
+submit() { api -H 'Idempotency-Key: "demo-carol-1"' -H 'Content-Type: application/json' -d "$body" http://meshmark/v1/jobs/protect; }
+job=$(submit | python3 -c 'import json,sys; print(json.load(sys.stdin)["jobs"][0]["id"])')
+again=$(submit | python3 -c 'import json,sys; print(json.load(sys.stdin)["jobs"][0]["id"])')
+echo "job $job; the same request again answers job $again (no second copy)"
+state() { api "http://meshmark/v1/jobs/$job" | python3 -c 'import json,sys; print(json.load(sys.stdin)["state"])'; }
+finished() { [[ "$(state)" =~ ^(succeeded|failed|cancelled)$ ]]; }
+wait_for "carol's protect job" 300 finished
+echo "job $job: $(state)"
+api -o "$D/carol-plate_with_holes.stl" "http://meshmark/v1/jobs/$job/copy"
+ls -l "$D/carol-plate_with_holes.stl"
+api http://meshmark/v1/queue; echo
+[ "$(state)" = succeeded ] && [ "$job" = "$again" ]
 
 echo "== stop meshmarkd (SIGTERM: finish running jobs, then exit)"
 kill -TERM "$pid"
