@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The fast part of the suite under AddressSanitizer and UndefinedBehaviorSanitizer (build type
-# Asan, its own folder build-asan/): the readers of outside bytes, the HTTP server and the store, with the fuzz
+# Asan, its own folder build-asan/): the readers of outside bytes, the HTTP server and the store
+# (SQLite, and the PostgreSQL layer against a throwaway server), with the fuzz
 # targets' regression inputs. Every test binary must pass with no sanitizer report (UBSan halts
 # on its first finding). The slow numerical suites (fitting, registration, jobs, end to end) run
 # only in the ordinary build: under ASan they would not fit CI's time.
@@ -9,7 +10,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 B=${ASAN_BUILD_DIR:-build-asan}
 JOBS=${JOBS:-$(nproc)}
-TESTS="test_support test_meshio test_cad test_codec test_store test_http_server test_watermark test_spectral test_subdivision test_geometry"
+TESTS="test_support test_meshio test_cad test_codec test_store test_store_postgres test_http_server test_watermark test_spectral test_subdivision test_geometry"
 FUZZ="mesh cad stream config copy_record"
 cmake -S . -B "$B" -DCMAKE_BUILD_TYPE=Asan >/dev/null
 cmake --build "$B" -j "$JOBS" --target $TESTS $(for f in $FUZZ; do echo "fuzz_$f"; done) >/dev/null

@@ -79,13 +79,7 @@ Response status_page() {
   return r;
 }
 
-std::string sha256_hex(const std::string& text) {
-  unsigned char h[crypto_hash_sha256_BYTES];
-  crypto_hash_sha256(h, reinterpret_cast<const unsigned char*>(text.data()), text.size());
-  char hex[2 * sizeof h + 1];
-  sodium_bin2hex(hex, sizeof hex, h, sizeof h);
-  return hex;
-}
+std::string sha256_hex(const std::string& text) { return support::sha256_hex(text.data(), text.size()); }
 
 std::optional<std::int64_t> parse_id(const std::string& s) {
   if (s.empty() || s.size() > 18 || s.find_first_not_of("0123456789") != std::string::npos) return std::nullopt;

@@ -3,6 +3,7 @@
 #include <sodium.h>
 
 #include "store/sqlite_store_impl.h"
+#include "support/sha256.h"
 
 namespace mm::store::sqlite_detail {
 namespace {
@@ -18,13 +19,7 @@ ApiToken read_token(const Stmt& s) {
   return t;
 }
 
-std::string sha256_hex(const std::string& text) {
-  unsigned char h[crypto_hash_sha256_BYTES];
-  crypto_hash_sha256(h, reinterpret_cast<const unsigned char*>(text.data()), text.size());
-  char hex[2 * sizeof h + 1];
-  sodium_bin2hex(hex, sizeof hex, h, sizeof h);
-  return hex;
-}
+std::string sha256_hex(const std::string& text) { return support::sha256_hex(text.data(), text.size()); }
 
 }  // namespace
 

@@ -30,6 +30,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/free_port.h"
 #include "store/home.h"
 #include "store/store.h"
 
@@ -42,18 +43,6 @@ using clock_type = std::chrono::steady_clock;
 std::string slurp(const fs::path& p) {
   std::ifstream in(p);
   return std::string((std::istreambuf_iterator<char>(in)), {});
-}
-
-int free_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t n = sizeof a;
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &n);
-  ::close(fd);
-  return ntohs(a.sin_port);
 }
 
 // One kept-alive HTTP/1.1 connection; every answer must carry Content-Length (the API's do).
@@ -149,7 +138,7 @@ struct RunningDaemon {
       token = st->create_token("bench", mm::store::TokenRole::admin).secret;
       st->add_customer("acme", "bench");
     }
-    port = free_port();
+    port = mm::test::free_port();
     std::ofstream(dir / "meshmarkd.json")
         << json{{"home", (dir / "home").string()}, {"drop_dir", (dir / "drop").string()},
                 {"output_dir", (dir / "out").string()}, {"workers", 2}, {"poll_interval_ms", 50},

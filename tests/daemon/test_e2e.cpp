@@ -28,6 +28,7 @@
 #include <thread>
 #include <tuple>
 
+#include "common/free_port.h"
 #include "common/shared_meshes.h"
 #include "codec/stream.h"
 #include "cad/sample_solids.h"
@@ -971,19 +972,6 @@ std::string output_of_command(const std::string& cmd) {
   return out;
 }
 
-// A free TCP port on loopback (bound, read, released).
-int free_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t n = sizeof a;
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &n);
-  ::close(fd);
-  return ntohs(a.sin_port);
-}
-
 // Debian's nginx running the shipped front config (config/nginx-meshmark.conf) with only its
 // paths, port and certificates replaced: TLS with client certificates, proxied to the daemon's
 // Unix socket. The certificates come from a throwaway CA made with openssl.
@@ -1014,7 +1002,7 @@ struct NginxFront {
         "openssl x509 -req -in $who.csr -CA clients-ca.crt -CAkey ca.key -CAcreateserial -out $who.crt -days 2 "
         "-extfile san.ext; done > openssl.log 2>&1";
     if (std::system(make_certs.c_str()) != 0) return "openssl failed: " + slurp(tls / "openssl.log");
-    port = free_port();
+    port = mm::test::free_port();
     std::string site = slurp(MESHMARK_NGINX_CONF);
     const auto replace = [&](const std::string& from, const std::string& to) {
       const auto at = site.find(from);
