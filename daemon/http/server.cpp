@@ -272,8 +272,10 @@ ListenAddress parse_listen(const std::string& text) {
 
 // A client connection: served by one thread at a time, parked with the acceptor between requests.
 struct Connection {
-  int fd = -1;
-  std::string peer;
+  // A request head and what follows it in one read fit; the parser's own limits come first.
+  explicit Connection(int socket, std::size_t max_header_bytes) : fd(socket), buf(max_header_bytes + 4096) {}
+  int fd;
+  std::string peer = "unix";
   beast::flat_buffer buf;
   int served = 0;  // requests answered
   std::chrono::steady_clock::time_point idle_since;
@@ -380,10 +382,11 @@ void Server::Impl::accept_loop() {
     }
     const auto now = clock::now();
     std::vector<ConnectionPtr> still;
+    std::size_t readable = 0;
     {
       std::lock_guard<std::mutex> lock(m);
       for (std::size_t k = 0; k < parked.size(); ++k) {
-        if (p[k + 2].revents) waiting.push_back(std::move(parked[k]));  // a request, or the peer left
+        if (p[k + 2].revents) waiting.push_back(std::move(parked[k])), ++readable;  // a request, or the peer left
         else if (now - parked[k]->idle_since > std::chrono::milliseconds(limits.idle_timeout_ms)) --open;  // closed
         else still.push_back(std::move(parked[k]));
       }
@@ -391,20 +394,16 @@ void Server::Impl::accept_loop() {
       returned.clear();
     }
     parked = std::move(still);
-    cv.notify_all();
+    for (std::size_t k = 0; k < readable; ++k) cv.notify_one();
     if (!(p[0].revents & POLLIN)) continue;
     sockaddr_storage ss{};
     socklen_t len = sizeof ss;
     const int fd = ::accept4(listen_fd, reinterpret_cast<sockaddr*>(&ss), &len, SOCK_CLOEXEC);
     if (fd < 0) continue;
+    auto c = std::make_unique<Connection>(fd, limits.max_header_bytes);
     if (ss.ss_family == AF_INET || ss.ss_family == AF_INET6) {
       const int one = 1;
       ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);  // answers are whole; send them now
-    }
-    auto c = std::make_unique<Connection>();
-    c->fd = fd;
-    c->peer = "unix";
-    if (ss.ss_family == AF_INET || ss.ss_family == AF_INET6) {
       char host[NI_MAXHOST], serv[NI_MAXSERV];
       if (::getnameinfo(reinterpret_cast<sockaddr*>(&ss), len, host, sizeof host, serv, sizeof serv,
                         NI_NUMERICHOST | NI_NUMERICSERV) == 0)

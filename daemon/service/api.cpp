@@ -13,6 +13,8 @@
 #include "service/handlers.h"
 #include "service/run_program.h"
 #include "service/status_page.h"
+#include "keys/signing.h"
+#include "support/hex.h"
 #include "support/sha256.h"
 #include "support/printable.h"
 
@@ -65,9 +67,8 @@ Response status_page() {
     const std::string script = page.substr(begin, page.find("</script>") - begin);
     unsigned char h[crypto_hash_sha256_BYTES];
     crypto_hash_sha256(h, reinterpret_cast<const unsigned char*>(script.data()), script.size());
-    char b64[sodium_base64_ENCODED_LEN(sizeof h, sodium_base64_VARIANT_ORIGINAL)];
-    sodium_bin2base64(b64, sizeof b64, h, sizeof h, sodium_base64_VARIANT_ORIGINAL);
-    return "default-src 'none'; script-src 'sha256-" + std::string(b64) +
+    const std::string b64 = keys::to_base64(std::string(reinterpret_cast<const char*>(h), sizeof h));
+    return "default-src 'none'; script-src 'sha256-" + b64 +
            "'; style-src 'unsafe-inline'; connect-src 'self'; img-src 'self'; base-uri 'none'; "
            "form-action 'none'; frame-ancestors 'none'";
   }();
@@ -724,9 +725,9 @@ Response Api::evidence(const std::string& id_text, const Request& req) {
     return res;
   }
   // The package folder as one tar (the same bytes each time: sorted, owner and times fixed).
-  unsigned char rnd[8];
+  std::uint8_t rnd[8];
   randombytes_buf(rnd, sizeof rnd);
-  const std::string tar = (fs::temp_directory_path() / ("meshmark-evidence-" + sha256_hex(std::string(reinterpret_cast<char*>(rnd), sizeof rnd)).substr(0, 16) + ".tar")).string();
+  const std::string tar = (fs::temp_directory_path() / ("meshmark-evidence-" + support::to_hex(rnd, sizeof rnd) + ".tar")).string();
   const int rc = run_program({"tar", "--sort=name", "--owner=0", "--group=0", "--numeric-owner", "--mtime=@0", "-C",
                               dir.parent_path().string(), "-cf", tar, dir.filename().string()});
   if (rc != 0) {

@@ -1,4 +1,5 @@
 #include "service/webhooks.h"
+#include "keys/signing.h"
 
 #include <sodium.h>
 #include <sys/stat.h>
@@ -19,10 +20,7 @@ using nlohmann::json;
 namespace fs = std::filesystem;
 
 std::string base64(const unsigned char* data, std::size_t n) {
-  std::string out(sodium_base64_encoded_len(n, sodium_base64_VARIANT_ORIGINAL), '\0');
-  sodium_bin2base64(out.data(), out.size(), data, n, sodium_base64_VARIANT_ORIGINAL);
-  out.resize(std::strlen(out.c_str()));
-  return out;
+  return keys::to_base64(std::string(reinterpret_cast<const char*>(data), n));
 }
 
 const WebhookEndpoint* endpoint_named(const Config& cfg, const std::string& name) {
