@@ -14,6 +14,8 @@
 #include "meshio/normalize.h"
 #include "meshio/read_mesh.h"
 #include "fitting/compress.h"
+#include "geometry/closest_point.h"
+#include "registration/align_similarity.h"
 #include "registration/resynchronize.h"
 #include "subdivision/decompress.h"
 #include "subdivision/subdivide.h"
@@ -152,6 +154,42 @@ TEST(Resync, MovedCopyInOrderIsAlignedBack) {
   const auto r = mm::resynchronize(ctx, suspect);
   EXPECT_EQ(r.level, 3);
   EXPECT_LT(max_error(r.points, ctx.control().points), 1e-10);
+}
+
+// Points on a surface, turned by 2 degrees and shifted by 1 % of the box: point-to-plane ICP puts
+// them back within a few rounds, where point-to-point ICP, pairing each point with the nearest
+// surface point rather than sliding along it, is still far off after as many.
+TEST(Resync, PointToPlaneIcpSettlesOnTheSurfaceInAFewRounds) {
+  MM_REQUIRE_SHARED_MESHES();
+  const Mesh surface = mm::subdivide(fandisk_quads(), 1);
+  const auto tris = mm::triangle_list(surface);
+  const mm::TriangleIndex index(surface.points, tris);
+  Points on(static_cast<Eigen::Index>(tris.size()), 3);
+  for (std::size_t t = 0; t < tris.size(); ++t)
+    on.row(static_cast<Eigen::Index>(t)) =
+        (surface.points.row(tris[t][0]) + surface.points.row(tris[t][1]) + surface.points.row(tris[t][2])) / 3;
+  mm::Similarity motion;
+  motion.rotation = Eigen::AngleAxisd(2 * M_PI / 180, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  motion.translation = Eigen::RowVector3d(0.01, -0.005, 0.008);
+  const Points moving = motion.apply(on);
+  const mm::ClosestOnSurface on_surface = [&](const Eigen::Vector3d& q, Eigen::Index) {
+    const mm::TriangleHit h = index.closest(q);
+    const auto& t = tris[static_cast<std::size_t>(h.triangle)];
+    const Eigen::Vector3d p0 = surface.points.row(t[0]), p1 = surface.points.row(t[1]), p2 = surface.points.row(t[2]);
+    return mm::SurfacePoint{h.point, (p1 - p0).cross(p2 - p0).normalized()};
+  };
+  mm::IcpOptions o;
+  o.trim_fraction = 0;
+  const mm::IcpResult plane = mm::icp_rigid_point_to_plane(moving, on_surface, mm::Similarity(), o);
+  EXPECT_LE(plane.iterations, 10);
+  EXPECT_EQ(plane.transform.scale, 1);
+  EXPECT_LT(max_error(plane.transform.apply(moving), on), 1e-6);
+  EXPECT_LT(plane.rms, 1e-7);
+
+  const mm::ClosestPoint nearest = [&](const Eigen::Vector3d& q, Eigen::Index) { return index.closest(q).point; };
+  o.keep_scale = true;
+  const mm::IcpResult point = mm::icp_similarity(moving, nearest, Points(), mm::Similarity(), o, plane.iterations);
+  EXPECT_GT(max_error(point.transform.apply(moving), on), 100 * max_error(plane.transform.apply(moving), on));
 }
 
 TEST(Resync, PolyhedronWithReorderedFaces) {

@@ -81,4 +81,18 @@ IcpResult align_similarity(const Points& moving, const Points& moving_samples,
                            const Points& fixed_samples, const ClosestPoint& closest,
                            const IcpOptions& options = {});
 
+// Closest point of a surface to a query and the surface's unit normal there.
+struct SurfacePoint {
+  Eigen::Vector3d point;
+  Eigen::Vector3d normal;
+};
+using ClosestOnSurface = std::function<SurfacePoint(const Eigen::Vector3d& q, Eigen::Index row)>;
+
+// Rigid ICP (the starting transform's scale kept) minimising point-to-plane distances, with the
+// rotation linearised each round (Chen and Medioni 1992): pairs may slide along the surface, so
+// it settles in a few rounds where point-to-point ICP creeps for tens (a 64k-vertex remesh: not
+// settled after 40). `rms` is the trimmed RMS closest-point distance, as icp_similarity's.
+IcpResult icp_rigid_point_to_plane(const Points& moving, const ClosestOnSurface& closest, const Similarity& start,
+                                   const IcpOptions& options = {});
+
 }  // namespace mm

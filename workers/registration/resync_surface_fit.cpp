@@ -14,6 +14,7 @@
 #include <stdexcept>
 
 #include "geometry/closest_point.h"
+#include "geometry/normal_weighted_grams.h"
 #include "geometry/nearest_neighbours.h"
 
 namespace mm::registration_detail {
@@ -52,13 +53,18 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
     // frame is kept when it explains the suspect nearly as well as the pose, the refined pose
     // when it explains it far better.
     const double full = icp_similarity(moving, closest, Points(), r.to_control_frame, o.icp, 0).rms;
-    IcpOptions rigid = o.icp;
-    rigid.keep_scale = true;
-    const IcpResult in_frame = icp_similarity(moving, closest, Points(), Similarity(), rigid);
+    const Points& fit_points = ctx.level(ctx.fit_level).points;
+    const ClosestOnSurface on_fit = [&hinted, &fit, &fit_points](const Eigen::Vector3d& q, Eigen::Index row) {
+      const TriangleHit h = hinted.closest(q, row);
+      const auto& t = fit.tris[static_cast<std::size_t>(h.triangle)];
+      const Eigen::Vector3d p0 = fit_points.row(t[0]), p1 = fit_points.row(t[1]), p2 = fit_points.row(t[2]);
+      return SurfacePoint{h.point, (p1 - p0).cross(p2 - p0).normalized()};
+    };
+    const IcpResult in_frame = icp_rigid_point_to_plane(moving, on_fit, Similarity(), o.icp);
     if (in_frame.rms <= kFrameTolerance * full) {
       r.to_control_frame = in_frame.transform;
     } else {
-      const IcpResult refined = icp_similarity(moving, closest, Points(), r.to_control_frame, rigid);
+      const IcpResult refined = icp_rigid_point_to_plane(moving, on_fit, r.to_control_frame, o.icp);
       if (refined.rms < kPartialGain * full) r.to_control_frame = refined.transform;
     }
   }
@@ -78,31 +84,23 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
   const int n3 = 3 * n;
   Eigen::VectorXd x0(n3);
   for (int a = 0; a < 3; ++a) x0.segment(a * n, n) = ctx.control.points.col(a);
-  SpMat S3(3 * nr, n3);
-  {
-    std::vector<Trip> s3;
-    s3.reserve(static_cast<size_t>(3 * S.nonZeros()));
-    for (int v = 0; v < nr; ++v)
-      for (SparseOperator::InnerIterator e(S, v); e; ++e)
-        for (int a = 0; a < 3; ++a) s3.emplace_back(a * nr + v, a * n + static_cast<int>(e.col()), e.value());
-    S3.setFromTriplets(s3.begin(), s3.end());
-  }
   for (int it = 0; it < std::max(1, o.fit_iterations); ++it) {
     // Pairs against the current estimate: the mark moves the surface by a fair fraction of the
     // refined edge length, so pairs with the original surface would be biased.
     const Points R = it == 0 ? level.points : apply_subdivision(level.op, x);
     const TriangleIndex current_tree(R, fit.tris);
     const TriangleIndex& surface = it == 0 ? *fit.tree : current_tree;
-    std::vector<Trip> t;
+    // One point-to-plane row: normal . (sum_c w_c (S x)_{v_c}) = normal . target; W holds the
+    // weights w_c over the refined vertices, so the rows over the control points are W S.
+    std::vector<Trip> w;
+    std::vector<Eigen::Vector3d> row_normals;
     std::vector<double> b;
-    // One point-to-plane row: normal . (sum_c w_c (S x)_{v_c} - target) = 0, over the refined
-    // vertices' coordinates (column a * nr + v); times blockdiag(S, S, S) below.
     auto add_row = [&](std::initializer_list<std::pair<int, double>> refined, const Eigen::Vector3d& normal,
                        const Eigen::Vector3d& target) {
       const int row = static_cast<int>(b.size());
-      for (auto [v, w] : refined)
-        for (int a = 0; a < 3; ++a)
-          if (w != 0 && normal[a] != 0) t.emplace_back(row, a * nr + v, normal[a] * w);
+      for (auto [v, wv] : refined)
+        if (wv != 0) w.emplace_back(row, v, wv);
+      row_normals.push_back(normal);
       b.push_back(normal.dot(target));
     };
     int accepted = 0;
@@ -144,24 +142,41 @@ Resynchronized surface_fit(const ResyncContext::Impl& ctx, const Mesh& suspect, 
       add_row({{v, 1.0}}, normal, c);
     }
     const int m = static_cast<int>(b.size());
-    SpMat Bn(m, 3 * nr);
-    Bn.setFromTriplets(t.begin(), t.end());
-    const SpMat A = Bn * S3;
-    const Eigen::Map<const Eigen::VectorXd> bv(b.data(), m);
-    SpMat M = SpMat(A.transpose()) * A;
+    SparseOperator W(m, nr);
+    W.setFromTriplets(w.begin(), w.end());
+    const SparseOperator by_row = W * S;  // m x n, the rows over the control points
+    const SpMat rows = by_row;
+    const SpMat rows_t = by_row.transpose();
+    Points normals(m, 3);
+    for (int i = 0; i < m; ++i) normals.row(i) = row_normals[static_cast<size_t>(i)].transpose();
+    const std::array<SpMat, 6> grams = normal_weighted_grams(rows, rows_t, normals);
     // Tangential motion is invisible on a surface: the pull towards the original decides it.
     // Relative to the data's own weight per unknown, so the pull is a fixed fraction.
-    const double lambda = o.regularization * M.diagonal().mean();
-    SpMat I(n3, n3);
-    I.setIdentity();
-    M += lambda * I;
-    const Eigen::VectorXd rhs = SpMat(A.transpose()) * bv + lambda * x0;
+    double trace = 0;
+    for (int a = 0; a < 3; ++a) trace += grams[static_cast<size_t>(a * (5 - a) / 2 + a)].diagonal().sum();
+    const double lambda = o.regularization * trace / n3;
+    std::vector<Trip> mt;
+    for (int a = 0; a < 3; ++a)
+      for (int c = a; c < 3; ++c)
+        for (int j = 0; j < n; ++j)
+          for (SpMat::InnerIterator e(grams[static_cast<size_t>(a * (5 - a) / 2 + c)], j); e; ++e) {
+            mt.emplace_back(a * n + static_cast<int>(e.row()), c * n + j, e.value());
+            if (a != c) mt.emplace_back(c * n + j, a * n + static_cast<int>(e.row()), e.value());
+          }
+    for (int i = 0; i < n3; ++i) mt.emplace_back(i, i, lambda);
+    SpMat M(n3, n3);
+    M.setFromTriplets(mt.begin(), mt.end());
+    const Eigen::Map<const Eigen::VectorXd> bv(b.data(), m);
+    Eigen::VectorXd rhs = lambda * x0;
+    for (int a = 0; a < 3; ++a) rhs.segment(a * n, n) += rows_t * normals.col(a).cwiseProduct(bv);
     Eigen::SimplicialLDLT<SpMat> solver(M);
     if (solver.info() != Eigen::Success) throw std::runtime_error("resync: surface fit system is singular");
     const Eigen::VectorXd xv = solver.solve(rhs);
     for (int a = 0; a < 3; ++a) x.col(a) = xv.segment(a * n, n);
     // Point-to-plane residual of the solution (the distances it leaves unexplained).
-    residual = std::sqrt((A * xv - bv).squaredNorm() / std::max(1, m));
+    Eigen::VectorXd explained = Eigen::VectorXd::Zero(m);
+    for (int a = 0; a < 3; ++a) explained += normals.col(a).cwiseProduct(rows * x.col(a));
+    residual = std::sqrt((explained - bv).squaredNorm() / std::max(1, m));
   }
   r.points = x;
   r.residual_rms = residual / ctx.diagonal;

@@ -1,5 +1,7 @@
 #include "watermark/surface_evidence.h"
 
+#include "geometry/normal_weighted_grams.h"
+
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
 #include <algorithm>
@@ -18,62 +20,6 @@ constexpr double kRidgeFactor = 1;
 constexpr int kRefits = 3;
 
 using SpMat = Eigen::SparseMatrix<double>;
-
-// R^T diag(n_a n_b) R (n x n) for the six pairs a <= b of normal components, in one pass over
-// the samples' rows: the six share their pattern, so each pair of a row's entries is found once
-// and weighted six times, instead of six sparse products finding it six times.
-// Rt = rows^T (column i: sample i's row).
-std::array<SpMat, 6> weighted_grams(const SpMat& rows, const SpMat& Rt, const Points& normals) {
-  const Eigen::Index n = rows.cols();
-  const Eigen::Index m = rows.rows();
-  Eigen::MatrixXd w(6, m);
-  for (Eigen::Index i = 0; i < m; ++i)
-    for (int a = 0, p = 0; a < 3; ++a)
-      for (int b = a; b < 3; ++b) w(p++, i) = normals(i, a) * normals(i, b);
-  std::vector<int> outer(static_cast<std::size_t>(n) + 1, 0), inner;
-  std::array<std::vector<double>, 6> values;
-  std::vector<int> slot(static_cast<std::size_t>(n), -1), touched;
-  std::vector<std::array<double, 6>> acc;
-  std::vector<int> order;
-  for (Eigen::Index j = 0; j < n; ++j) {
-    touched.clear();
-    acc.clear();
-    for (SpMat::InnerIterator e(rows, j); e; ++e) {
-      const Eigen::Index i = e.row();
-      const double* wi = &w(0, i);
-      for (SpMat::InnerIterator f(Rt, i); f; ++f) {
-        const int k = static_cast<int>(f.row());
-        int& s = slot[static_cast<std::size_t>(k)];
-        if (s < 0) {
-          s = static_cast<int>(touched.size());
-          touched.push_back(k);
-          acc.push_back({0, 0, 0, 0, 0, 0});
-        }
-        const double v = f.value() * e.value();
-        std::array<double, 6>& x = acc[static_cast<std::size_t>(s)];
-        for (int p = 0; p < 6; ++p) x[static_cast<std::size_t>(p)] += v * wi[p];
-      }
-    }
-    order.resize(touched.size());
-    std::iota(order.begin(), order.end(), 0);
-    std::sort(order.begin(), order.end(), [&](int a, int b) {
-      return touched[static_cast<std::size_t>(a)] < touched[static_cast<std::size_t>(b)];
-    });
-    for (int s : order) {
-      const int k = touched[static_cast<std::size_t>(s)];
-      inner.push_back(k);
-      for (int p = 0; p < 6; ++p) values[static_cast<std::size_t>(p)].push_back(acc[static_cast<std::size_t>(s)][static_cast<std::size_t>(p)]);
-      slot[static_cast<std::size_t>(k)] = -1;
-    }
-    outer[static_cast<std::size_t>(j) + 1] = static_cast<int>(inner.size());
-  }
-  std::array<SpMat, 6> out;
-  const auto nnz = static_cast<Eigen::Index>(inner.size());
-  for (int p = 0; p < 6; ++p)
-    out[static_cast<std::size_t>(p)] =
-        Eigen::Map<const SpMat>(n, n, nnz, outer.data(), inner.data(), values[static_cast<std::size_t>(p)].data());
-  return out;
-}
 
 }  // namespace
 
@@ -120,7 +66,7 @@ CoefficientEvidence surface_evidence(const SpectralBasis& basis, const Points& o
   // not grow with the samples (every suspect vertex can be used) and A is never held.
   const Eigen::Index cols = 3 * static_cast<Eigen::Index>(K);
   const SpMat Rt = rows.transpose();
-  const std::array<SpMat, 6> grams = weighted_grams(rows, Rt, normals);
+  const std::array<SpMat, 6> grams = normal_weighted_grams(rows, Rt, normals);
   Eigen::VectorXd d = offsets;
   project(d);
   Eigen::MatrixXd H(cols, cols), C(Q.cols(), cols);
