@@ -18,19 +18,14 @@
 #include "store/migrations.h"
 #include "store/sqlite_db.h"
 #include "store/store.h"
+#include "store/store_rules.h"
 
 namespace mm::store::sqlite_detail {
 
-
-using nlohmann::json;
+using namespace mm::store::rules;
 using sql::Db;
 using sql::Stmt;
 using sql::Tx;
-
-constexpr const char* kJobCols =
-    "id, kind, payload_json, state, priority, attempt, max_attempts, "
-    "COALESCE(idempotency_key, ''), created_at, scheduled_at, attempted_at, finished_at, "
-    "worker_id, lease_until, errors_json, result_json, rescues";
 
 inline Job read_job(const Stmt& s) {
   Job j;
@@ -48,34 +43,24 @@ inline Job read_job(const Stmt& s) {
   j.finished_at = s.opt_i64(11);
   j.worker_id = s.text(12);
   j.lease_until = s.opt_i64(13);
-  json errs = json::parse(s.text(14), nullptr, false);
-  if (errs.is_array())
-    for (const auto& e : errs)
-      j.errors.push_back({e.value("attempt", 0), e.value("at", Millis{0}), e.value("error", std::string())});
+  j.errors = parse_errors(s.text(14));
   j.result_json = s.text(15);
   j.rescues = static_cast<int>(s.i64(16));
   return j;
 }
 
-constexpr const char* kCustomerCols = "id, name, current_key_version, created_at";
 inline Customer read_customer(const Stmt& s) {
   return {s.i64(0), s.text(1), static_cast<int>(s.i64(2)), s.i64(3)};
 }
 
-constexpr const char* kAssetCols = "id, sha256, size, name, format, created_at";
 inline Asset read_asset(const Stmt& s) {
   return {s.i64(0), s.text(1), static_cast<std::uint64_t>(s.i64(2)), s.text(3), s.text(4), s.i64(5)};
 }
 
-constexpr const char* kPolyCols =
-    "id, asset_id, params_key, polyhedron_blob, basis_blob, meta_json, created_at";
 inline Polyhedron read_poly(const Stmt& s) {
   return {s.i64(0), s.i64(1), s.text(2), s.text(3), s.text(4), s.text(5), s.i64(6)};
 }
 
-constexpr const char* kCopyCols =
-    "id, asset_id, customer_id, key_version, idempotency_key, nonce, payload_hex, params_json, "
-    "outputs_json, polyhedron_id, job_id, created_at";
 inline IssuedCopy read_copy(const Stmt& s) {
   IssuedCopy c;
   c.id = s.i64(0);
@@ -93,9 +78,6 @@ inline IssuedCopy read_copy(const Stmt& s) {
   return c;
 }
 
-constexpr const char* kDetectionCols =
-    "id, job_id, suspect_sha256, suspect_name, verdict, asset_id, copy_id, customer_id, "
-    "correlation, p_value, decoded_payload_hex, details_json, created_at, resync_method, resync_residual";
 inline Detection read_detection(const Stmt& s) {
   Detection d;
   d.id = s.i64(0);
@@ -116,32 +98,6 @@ inline Detection read_detection(const Stmt& s) {
   return d;
 }
 
-inline std::string sel(const char* cols, const char* rest) {
-  return std::string("SELECT ") + cols + " " + rest;
-}
-
-inline void require_json(const std::string& text, const char* what) {
-  if (!json::accept(text)) throw StoreError(std::string(what) + " is not valid JSON");
-}
-
-inline std::string clip(const std::string& s, std::size_t n) { return s.size() <= n ? s : s.substr(0, n) + "..."; }
-
-// The drop folders' rule too (service/drop_watcher.h): a leading '.' would name a hidden folder
-// that the watcher ignores, so such a customer could never be protected through it.
-inline bool valid_customer_name(const std::string& n) {
-  static const std::regex re("[A-Za-z0-9_-][A-Za-z0-9._-]{0,63}");
-  return std::regex_match(n, re);
-}
-
-inline std::string format_from_name(const std::string& name) {
-  auto slash = name.find_last_of('/');
-  std::string base = slash == std::string::npos ? name : name.substr(slash + 1);
-  auto dot = base.find_last_of('.');
-  if (dot == std::string::npos || dot + 1 == base.size()) return "";
-  std::string ext = base.substr(dot + 1);
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ext.size() <= 8 ? ext : "";
-}
 
 class SqliteStore final : public Store {
  public:
@@ -301,13 +257,7 @@ class SqliteStore final : public Store {
                      clip(worker_id, 80) + " (state " + state + (j && j->state == JobState::running ? ", worker " + j->worker_id : "") + ")");
   }
 
-  Millis backoff(int attempt) {
-    const BackoffPolicy& b = opt_.backoff;
-    double d = static_cast<double>(b.base) * std::pow(2.0, std::max(0, attempt - 1));
-    d = std::min(d, static_cast<double>(b.max));
-    double j = b.jitter > 0 ? std::uniform_real_distribution<double>(0.0, b.jitter * d)(rng_) : 0.0;
-    return static_cast<Millis>(d + j);
-  }
+  Millis backoff(int attempt) { return backoff_delay(opt_.backoff, attempt, rng_); }
 
   int current_version() {
     Stmt q(db_, "SELECT COALESCE(MAX(version), 0) FROM schema_version");

@@ -8,7 +8,6 @@
 namespace mm::store::sqlite_detail {
 namespace {
 
-constexpr const char* kTokenCols = "id, name, role, created_at, revoked_at";
 ApiToken read_token(const Stmt& s) {
   ApiToken t;
   t.id = s.i64(0);

@@ -10,6 +10,7 @@
 #include "keys/keys.h"
 #include "store/home.h"
 #include "store/sqlite_db.h"
+#include "store_backends.h"
 #include "store_test_util.h"
 
 using namespace mm;
@@ -135,10 +136,14 @@ TEST(Keys, MasterKeyFromEnvironmentHexOrBase64) {
   }
 }
 
-TEST(Keys, StoreCustomerKeysRotateAndOldVersionsStay) {
+// Customer keys in the store, on each backend.
+class StoreKeys : public BackendTest {};
+MM_BACKENDS(StoreKeys);
+
+TEST_P(StoreKeys, StoreCustomerKeysRotateAndOldVersionsStay) {
   TempDir dir;
   auto o = options(dir);
-  auto s = store::open_sqlite_store(o);
+  auto s = open_store(dir, o);
   auto acme = s->add_customer("acme");
   EXPECT_EQ(acme.current_key_version, 1);
   auto k1 = s->customer_key(acme.id);
@@ -161,10 +166,10 @@ TEST(Keys, StoreCustomerKeysRotateAndOldVersionsStay) {
   // Wrong master key: refused when the store is opened; no master key at all: a clear KeyError.
   auto wrong = o;
   wrong.master_key = SecretKey::random();
-  EXPECT_THROW(store::open_sqlite_store(wrong), keys::KeyError);
+  EXPECT_THROW(open_store(dir, wrong), keys::KeyError);
   auto none = o;
   none.master_key.reset();
-  auto sn = store::open_sqlite_store(none);
+  auto sn = open_store(dir, none);
   EXPECT_THROW(sn->customer_key(acme.id), keys::KeyError);
   EXPECT_EQ(sn->list_customers().size(), 2u) << "listing needs no key";
 }
@@ -172,39 +177,36 @@ TEST(Keys, StoreCustomerKeysRotateAndOldVersionsStay) {
 // A wrong master key is refused at open, before `customer add` or `rotate-key` can seal anything
 // under it or the daemon starts: by the stored check value, or, for a store that has none yet, by
 // the first sealed customer key.
-TEST(Keys, WrongMasterKeyIsRefusedWhenTheStoreOpens) {
+TEST_P(StoreKeys, WrongMasterKeyIsRefusedWhenTheStoreOpens) {
   TempDir dir;
   auto o = options(dir);
   {
-    auto s = store::open_sqlite_store(o);  // a new store records the key's check value
+    auto s = open_store(dir, o);  // a new store records the key's check value
   }
   auto wrong = o;
   wrong.master_key = SecretKey::random();
   try {
-    store::open_sqlite_store(wrong);
+    open_store(dir, wrong);
     FAIL() << "a new store accepted another master key";
   } catch (const keys::KeyError& e) {
     EXPECT_NE(std::string(e.what()).find("wrong master key"), std::string::npos) << e.what();
   }
   std::int64_t acme = 0;
   {
-    auto s = store::open_sqlite_store(o);
+    auto s = open_store(dir, o);
     acme = s->add_customer("acme").id;
   }
   // A store from before the check value: the sealed key decides, and the check is recorded.
+  stores().raw(dir, "DELETE FROM master_key_check");
+  EXPECT_THROW(open_store(dir, wrong), keys::KeyError);
   {
-    store::sql::Db db(o.db_path, 1000);
-    db.exec("DELETE FROM master_key_check", "delete");
-  }
-  EXPECT_THROW(store::open_sqlite_store(wrong), keys::KeyError);
-  {
-    auto s = store::open_sqlite_store(o);
+    auto s = open_store(dir, o);
     EXPECT_EQ(s->customer_key(acme).version, 1);
   }
-  EXPECT_THROW(store::open_sqlite_store(wrong), keys::KeyError);
+  EXPECT_THROW(open_store(dir, wrong), keys::KeyError);
   auto none = o;
   none.master_key.reset();
-  EXPECT_NO_THROW(store::open_sqlite_store(none)) << "read-only use needs no key";
+  EXPECT_NO_THROW(open_store(dir, none)) << "read-only use needs no key";
 }
 
 TEST(Keys, NoKeyMaterialAnywhereInTheDatabaseOrMessages) {

@@ -5,6 +5,7 @@
 #include <thread>
 
 #include "store/sqlite_db.h"
+#include "store_backends.h"
 #include "store_test_util.h"
 
 using namespace mm;
@@ -22,12 +23,17 @@ JobSpec spec(const std::string& kind = "noop", int priority = 0, int max_attempt
   s.idempotency_key = idem;
   return s;
 }
+
+// The queue contract, on each backend.
+class Queue : public BackendTest {};
+MM_BACKENDS(Queue);
+
 }  // namespace
 
-TEST(Queue, EnqueueClaimComplete) {
+TEST_P(Queue, EnqueueClaimComplete) {
   TempDir dir;
   StepClock clock;
-  auto s = store::open_sqlite_store(options(dir, &clock));
+  auto s = open_store(dir, options(dir, &clock));
   auto e = s->enqueue(spec());
   ASSERT_TRUE(e.created);
   EXPECT_EQ(e.job.state, JobState::available);
@@ -54,10 +60,10 @@ TEST(Queue, EnqueueClaimComplete) {
 
 // A batch commits together, but each completion is all or nothing on its own: one whose lease
 // is gone (or whose result is not JSON) is rolled back alone and reported; the others complete.
-TEST(Queue, CompleteBatchCommitsTogetherAndFailsEachCompletionAlone) {
+TEST_P(Queue, CompleteBatchCommitsTogetherAndFailsEachCompletionAlone) {
   TempDir dir;
   StepClock clock;
-  auto s = store::open_sqlite_store(options(dir, &clock));
+  auto s = open_store(dir, options(dir, &clock));
   std::vector<std::int64_t> ids;
   for (int i = 0; i < 4; ++i) {
     s->enqueue(spec());
@@ -93,9 +99,9 @@ TEST(Queue, CompleteBatchCommitsTogetherAndFailsEachCompletionAlone) {
   EXPECT_EQ(s->list_audit(100000).size(), audit_before + 3);  // 2 x job.complete + 1 x job.enqueue
 }
 
-TEST(Queue, RejectsBadSpecs) {
+TEST_P(Queue, RejectsBadSpecs) {
   TempDir dir;
-  auto s = store::open_sqlite_store(options(dir));
+  auto s = open_store(dir, options(dir));
   EXPECT_THROW(s->enqueue(spec("")), store::StoreError);
   EXPECT_THROW(s->enqueue(spec("noop", 0, 0)), store::StoreError);
   JobSpec bad = spec();
@@ -104,12 +110,12 @@ TEST(Queue, RejectsBadSpecs) {
   EXPECT_EQ(s->list_jobs().size(), 0u);
 }
 
-TEST(Queue, ConcurrentClaimsGiveEachJobToExactlyOneWorker) {
+TEST_P(Queue, ConcurrentClaimsGiveEachJobToExactlyOneWorker) {
   TempDir dir;
   auto o = options(dir);
   const int kJobs = 300;
   {
-    auto s = store::open_sqlite_store(o);
+    auto s = open_store(dir, o);
     for (int i = 0; i < kJobs; ++i) s->enqueue(spec());
   }
   std::mutex m;
@@ -126,8 +132,8 @@ TEST(Queue, ConcurrentClaimsGiveEachJobToExactlyOneWorker) {
   // Four threads with their own connections (the cross-connection lock is what is tested), plus
   // two threads sharing one Store object.
   std::vector<std::unique_ptr<store::Store>> own;
-  for (int i = 0; i < 4; ++i) own.push_back(store::open_sqlite_store(o));
-  auto shared = store::open_sqlite_store(o);
+  for (int i = 0; i < 4; ++i) own.push_back(open_store(dir, o));
+  auto shared = open_store(dir, o);
   std::vector<std::thread> ts;
   for (int i = 0; i < 4; ++i) ts.emplace_back(worker, std::ref(*own[i]), "own-" + std::to_string(i));
   for (int i = 0; i < 2; ++i) ts.emplace_back(worker, std::ref(*shared), "shared-" + std::to_string(i));
@@ -139,10 +145,10 @@ TEST(Queue, ConcurrentClaimsGiveEachJobToExactlyOneWorker) {
   EXPECT_EQ(c.available + c.running + c.retryable + c.discarded, 0);
 }
 
-TEST(Queue, ExpiredLeaseIsClaimableAgainAndOldWorkerLosesIt) {
+TEST_P(Queue, ExpiredLeaseIsClaimableAgainAndOldWorkerLosesIt) {
   TempDir dir;
   StepClock clock;
-  auto s = store::open_sqlite_store(options(dir, &clock));
+  auto s = open_store(dir, options(dir, &clock));
   auto id = s->enqueue(spec()).job.id;
   auto j = s->claim("w1", 1000);
   ASSERT_TRUE(j);
@@ -165,10 +171,10 @@ TEST(Queue, ExpiredLeaseIsClaimableAgainAndOldWorkerLosesIt) {
   EXPECT_EQ(s->get_job(id)->state, JobState::completed);
 }
 
-TEST(Queue, KillStormDoesNotUseUpAttempts) {
+TEST_P(Queue, KillStormDoesNotUseUpAttempts) {
   TempDir dir;
   StepClock clock;
-  auto s = store::open_sqlite_store(options(dir, &clock));
+  auto s = open_store(dir, options(dir, &clock));
   auto id = s->enqueue(spec("noop", 0, 2)).job.id;
   for (int kill = 0; kill < 10; ++kill) {  // ten workers die holding the job
     ASSERT_TRUE(s->claim("w" + std::to_string(kill), 100)) << "kill " << kill;
@@ -188,10 +194,10 @@ TEST(Queue, KillStormDoesNotUseUpAttempts) {
   EXPECT_EQ(j->errors.size(), 12u);
 }
 
-TEST(Queue, JobThatKeepsKillingItsWorkerIsDiscardedAfterMaxRescues) {
+TEST_P(Queue, JobThatKeepsKillingItsWorkerIsDiscardedAfterMaxRescues) {
   TempDir dir;
   StepClock clock;
-  auto s = store::open_sqlite_store(options(dir, &clock));
+  auto s = open_store(dir, options(dir, &clock));
   auto id = s->enqueue(spec("noop", 0, 5)).job.id;
   for (int kill = 0; kill < store::kMaxRescues; ++kill) {
     ASSERT_TRUE(s->claim("w", 100)) << "kill " << kill;
@@ -213,14 +219,14 @@ TEST(Queue, JobThatKeepsKillingItsWorkerIsDiscardedAfterMaxRescues) {
   EXPECT_EQ(s->get_job(id)->state, JobState::available);
 }
 
-TEST(Queue, RetriesWithExponentialBackoffAndJitterThenDiscardsKeepingErrors) {
+TEST_P(Queue, RetriesWithExponentialBackoffAndJitterThenDiscardsKeepingErrors) {
   TempDir dir;
   StepClock clock;
   auto o = options(dir, &clock);
   o.backoff.base = 1000;
   o.backoff.max = 1'000'000;
   o.backoff.jitter = 0.1;
-  auto s = store::open_sqlite_store(o);
+  auto s = open_store(dir, o);
   auto id = s->enqueue(spec("noop", 0, 4)).job.id;
   store::Millis expected_delay = 1000;
   for (int attempt = 1; attempt <= 3; ++attempt) {
@@ -252,13 +258,13 @@ TEST(Queue, RetriesWithExponentialBackoffAndJitterThenDiscardsKeepingErrors) {
   EXPECT_FALSE(s->claim("w", 1000));
 }
 
-TEST(Queue, JitterSpreadsRetries) {
+TEST_P(Queue, JitterSpreadsRetries) {
   TempDir dir;
   StepClock clock;
   auto o = options(dir, &clock);
   o.backoff.base = 10'000;
   o.backoff.jitter = 0.5;
-  auto s = store::open_sqlite_store(o);
+  auto s = open_store(dir, o);
   std::set<store::Millis> delays;
   for (int i = 0; i < 20; ++i) {
     auto id = s->enqueue(spec()).job.id;
@@ -273,19 +279,19 @@ TEST(Queue, JitterSpreadsRetries) {
   }
 }
 
-TEST(Queue, NonRetryableFailureDiscardsAtOnce) {
+TEST_P(Queue, NonRetryableFailureDiscardsAtOnce) {
   TempDir dir;
-  auto s = store::open_sqlite_store(options(dir));
+  auto s = open_store(dir, options(dir));
   auto id = s->enqueue(spec("noop", 0, 10)).job.id;
   ASSERT_TRUE(s->claim("w", 1000));
   EXPECT_EQ(s->fail(id, "w", "malformed mesh", false), JobState::discarded);
   EXPECT_EQ(s->get_job(id)->errors.at(0).error, "malformed mesh");
 }
 
-TEST(Queue, CancelAndRetry) {
+TEST_P(Queue, CancelAndRetry) {
   TempDir dir;
   StepClock clock;
-  auto s = store::open_sqlite_store(options(dir, &clock));
+  auto s = open_store(dir, options(dir, &clock));
   auto a = s->enqueue(spec()).job.id;
   EXPECT_TRUE(s->cancel(a));
   EXPECT_EQ(s->get_job(a)->state, JobState::cancelled);
@@ -322,10 +328,10 @@ TEST(Queue, CancelAndRetry) {
   EXPECT_EQ(s->fail(c, "w", "y"), JobState::discarded);
 }
 
-TEST(Queue, PrioritiesThenScheduleThenId) {
+TEST_P(Queue, PrioritiesThenScheduleThenId) {
   TempDir dir;
   StepClock clock;
-  auto s = store::open_sqlite_store(options(dir, &clock));
+  auto s = open_store(dir, options(dir, &clock));
   auto low = s->enqueue(spec("noop", -5)).job.id;
   auto mid1 = s->enqueue(spec("noop", 0)).job.id;
   auto high = s->enqueue(spec("noop", 10)).job.id;
@@ -343,9 +349,9 @@ TEST(Queue, PrioritiesThenScheduleThenId) {
   EXPECT_EQ(s->next_scheduled(), std::nullopt);
 }
 
-TEST(Queue, IdempotencyKeyReturnsTheExistingJob) {
+TEST_P(Queue, IdempotencyKeyReturnsTheExistingJob) {
   TempDir dir;
-  auto s = store::open_sqlite_store(options(dir));
+  auto s = open_store(dir, options(dir));
   auto a = s->enqueue(spec("protect", 0, 5, "asset-abc/customer-1"));
   auto b = s->enqueue(spec("protect", 7, 5, "asset-abc/customer-1"));
   EXPECT_TRUE(a.created);
@@ -364,9 +370,9 @@ TEST(Queue, IdempotencyKeyReturnsTheExistingJob) {
   EXPECT_TRUE(s->enqueue(spec()).created);
 }
 
-TEST(Queue, KindFilterAndRelease) {
+TEST_P(Queue, KindFilterAndRelease) {
   TempDir dir;
-  auto s = store::open_sqlite_store(options(dir));
+  auto s = open_store(dir, options(dir));
   auto p = s->enqueue(spec("protect")).job.id;
   auto d = s->enqueue(spec("detect", 5)).job.id;
   auto j = s->claim("w", 1000, {"protect"});
@@ -383,7 +389,7 @@ TEST(Queue, KindFilterAndRelease) {
   EXPECT_EQ(dj->id, d);
 }
 
-TEST(Queue, TransitionTable) {
+TEST(QueueRules, TransitionTable) {
   using S = JobState;
   EXPECT_TRUE(store::job_transition_allowed(S::available, S::running));
   EXPECT_TRUE(store::job_transition_allowed(S::running, S::completed));
@@ -399,7 +405,7 @@ TEST(Queue, TransitionTable) {
   EXPECT_THROW(store::job_state_from_string("bogus"), store::StoreError);
 }
 
-TEST(Queue, RowsInsertedDirectlyByAnotherSystemFollowTheContract) {
+TEST(QueueOnSqlite, RowsInsertedDirectlyByAnotherSystemFollowTheContract) {
   // docs/queue-contract.md: a PDM system inserts (kind, payload_json[, priority, max_attempts,
   // idempotency_key, scheduled_at]) and the defaults make the row claimable.
   TempDir dir;
@@ -428,13 +434,13 @@ TEST(Queue, RowsInsertedDirectlyByAnotherSystemFollowTheContract) {
   EXPECT_NE(err.find("CHECK"), std::string::npos) << "running without a lease: " << err;
 }
 
-TEST(Queue, NextScheduledTellsASleepingWorkerWhenToWake) {
+TEST_P(Queue, NextScheduledTellsASleepingWorkerWhenToWake) {
   TempDir dir;
   StepClock clock;
   auto o = options(dir, &clock);
   o.backoff.base = 4000;
   o.backoff.jitter = 0;
-  auto s = store::open_sqlite_store(o);
+  auto s = open_store(dir, o);
   EXPECT_EQ(s->next_scheduled(), std::nullopt);
   auto id = s->enqueue(spec()).job.id;
   EXPECT_EQ(s->next_scheduled(), clock.now());
@@ -446,7 +452,7 @@ TEST(Queue, NextScheduledTellsASleepingWorkerWhenToWake) {
 
 // Reads (opening a current store, listing jobs, copies, detections) never take the write lock:
 // they work while another program holds a write transaction.
-TEST(Queue, ReadsWorkWhileAnotherConnectionHoldsTheWriteLock) {
+TEST(QueueOnSqlite, ReadsWorkWhileAnotherConnectionHoldsTheWriteLock) {
   TempDir dir;
   store::StoreOptions o;
   o.db_path = dir / "q.db";

@@ -2,6 +2,7 @@
 
 #include <fstream>
 
+#include "store_backends.h"
 #include "store_test_util.h"
 
 using namespace mm;
@@ -11,6 +12,7 @@ using store::JobState;
 namespace {
 
 struct Fixture {
+  BackendStores stores;
   TempDir dir;
   StepClock clock;
   std::string fault_at;  // the injection point that throws ("" = none)
@@ -18,12 +20,12 @@ struct Fixture {
   store::Customer acme;
   store::Asset asset;
 
-  Fixture() {
+  explicit Fixture(Backend b) : stores(b) {
     auto o = options(dir, &clock);
     o.fault_injection = [this](const std::string& point) {
       if (point == fault_at) throw std::runtime_error("injected failure at " + point);
     };
-    s = store::open_sqlite_store(o);
+    s = stores.open_store(dir, o);
     acme = s->add_customer("acme");
     asset = s->put_asset_bytes({1, 2, 3, 4}, "part.stl");
   }
@@ -42,14 +44,18 @@ struct Fixture {
   }
 
   std::string count(const std::string& table) {
-    return raw_query(dir / "meshmark.db", "SELECT COUNT(*) FROM " + table)[0];
+    return stores.raw(dir, "SELECT COUNT(*) FROM " + table)[0];
   }
 };
 
+// The records' contract, on each backend.
+class Records : public BackendTest {};
+MM_BACKENDS(Records);
+
 }  // namespace
 
-TEST(Records, CompleteWritesJobAndRecordsTogether) {
-  Fixture f;
+TEST_P(Records, CompleteWritesJobAndRecordsTogether) {
+  Fixture f(GetParam());
   auto id = f.s->enqueue({"protect", "{}", 0, 5, "job-1", {}}).job.id;
   ASSERT_TRUE(f.s->claim("w", 1000));
   store::JobRecords r;
@@ -78,10 +84,15 @@ TEST(Records, CompleteWritesJobAndRecordsTogether) {
   EXPECT_EQ(f.s->get_job(id)->state, JobState::completed);
 }
 
-class CompleteFault : public ::testing::TestWithParam<const char*> {};
+class CompleteFault : public ::testing::TestWithParam<std::tuple<Backend, const char*>> {
+ protected:
+  void SetUp() override {
+    if (std::get<0>(GetParam()) == Backend::postgres) MM_REQUIRE_POSTGRES();
+  }
+};
 
 TEST_P(CompleteFault, FailureMidTransactionWritesNothing) {
-  Fixture f;
+  Fixture f(std::get<0>(GetParam()));
   auto id = f.s->enqueue({"protect", "{}", 0, 5, "job-1", {}}).job.id;
   ASSERT_TRUE(f.s->claim("w", 60'000));
   std::string audit_before = f.count("audit_log");
@@ -92,7 +103,7 @@ TEST_P(CompleteFault, FailureMidTransactionWritesNothing) {
   d.verdict = "no watermark found";
   r.detections = {d};
   r.audit = {{"w", "custom.event", "x", "{}"}};
-  f.fault_at = GetParam();
+  f.fault_at = std::get<1>(GetParam());
   EXPECT_THROW(f.s->complete(id, "w", r), std::runtime_error);
   EXPECT_EQ(f.count("issued_copies"), "0");
   EXPECT_EQ(f.count("detections"), "0");
@@ -106,12 +117,20 @@ TEST_P(CompleteFault, FailureMidTransactionWritesNothing) {
   EXPECT_EQ(f.count("issued_copies"), "1");
   EXPECT_EQ(f.count("detections"), "1");
 }
-INSTANTIATE_TEST_SUITE_P(Points, CompleteFault,
-                         ::testing::Values("complete.after_job_update", "complete.after_copies",
-                                           "complete.after_detections", "complete.before_commit"));
+INSTANTIATE_TEST_SUITE_P(
+    Points, CompleteFault,
+    ::testing::Combine(::testing::Values(Backend::sqlite, Backend::postgres),
+                       ::testing::Values("complete.after_job_update", "complete.after_copies",
+                                         "complete.after_detections", "complete.before_commit")),
+    [](const auto& info) {
+      std::string point = std::get<1>(info.param);
+      for (char& ch : point)
+        if (ch == '.') ch = '_';
+      return (std::get<0>(info.param) == Backend::sqlite ? "sqlite_" : "postgres_") + point;
+    });
 
-TEST(Records, ConstraintViolationInRecordsRollsBackCompletion) {
-  Fixture f;
+TEST_P(Records, ConstraintViolationInRecordsRollsBackCompletion) {
+  Fixture f(GetParam());
   auto id = f.s->enqueue({"protect", "{}", 0, 5, "", {}}).job.id;
   ASSERT_TRUE(f.s->claim("w", 60'000));
   store::JobRecords r;
@@ -122,8 +141,8 @@ TEST(Records, ConstraintViolationInRecordsRollsBackCompletion) {
   EXPECT_EQ(f.s->get_job(id)->state, JobState::running);
 }
 
-TEST(Records, IssuedCopyIsUniquePerAssetCustomerKeyVersionAndIdempotencyKey) {
-  Fixture f;
+TEST_P(Records, IssuedCopyIsUniquePerAssetCustomerKeyVersionAndIdempotencyKey) {
+  Fixture f(GetParam());
   auto a = f.s->issue_copy(f.copy("req-1"));
   auto b = f.s->issue_copy(f.copy("req-1"));
   EXPECT_EQ(a.id, b.id);
@@ -148,8 +167,8 @@ TEST(Records, IssuedCopyIsUniquePerAssetCustomerKeyVersionAndIdempotencyKey) {
   EXPECT_FALSE(f.s->find_copy(f.asset.id, f.acme.id, 3, "req-1"));
 }
 
-TEST(Records, AssetsAreDeduplicatedByContent) {
-  Fixture f;
+TEST_P(Records, AssetsAreDeduplicatedByContent) {
+  Fixture f(GetParam());
   std::string p = f.dir / "copy-of-part.stl";
   {
     std::ofstream out(p, std::ios::binary);
@@ -168,8 +187,8 @@ TEST(Records, AssetsAreDeduplicatedByContent) {
   EXPECT_THROW(f.s->put_asset_file(f.dir / "missing.stl", "missing.stl"), store::BlobError);
 }
 
-TEST(Records, PolyhedraAreCachedPerAssetAndParameters) {
-  Fixture f;
+TEST_P(Records, PolyhedraAreCachedPerAssetAndParameters) {
+  Fixture f(GetParam());
   std::string poly = f.s->blobs().put(std::string("control polyhedron"));
   std::string basis = f.s->blobs().put(std::string("basis"));
   store::Polyhedron p;
@@ -190,8 +209,8 @@ TEST(Records, PolyhedraAreCachedPerAssetAndParameters) {
   EXPECT_THROW(f.s->put_polyhedron(missing), store::StoreError) << "a row must never point at a missing blob";
 }
 
-TEST(Records, AuditLogIsAppendOnly) {
-  Fixture f;
+TEST_P(Records, AuditLogIsAppendOnly) {
+  Fixture f(GetParam());
   auto id = f.s->append_audit({"test", "custom.event", "x", R"({"n":1})"});
   auto entries = f.s->list_audit();
   ASSERT_FALSE(entries.empty());
@@ -201,9 +220,9 @@ TEST(Records, AuditLogIsAppendOnly) {
   for (auto& e : entries) saw_customer |= e.action == "customer.add";
   EXPECT_TRUE(saw_customer);
   std::string err;
-  raw_query(f.dir / "meshmark.db", "UPDATE audit_log SET action = 'forged'", &err);
+  f.stores.raw(f.dir, "UPDATE audit_log SET action = 'forged'", &err);
   EXPECT_NE(err.find("append-only"), std::string::npos) << err;
-  raw_query(f.dir / "meshmark.db", "DELETE FROM audit_log", &err);
+  f.stores.raw(f.dir, "DELETE FROM audit_log", &err);
   EXPECT_NE(err.find("append-only"), std::string::npos) << err;
   EXPECT_EQ(f.s->list_audit().size(), entries.size());
   EXPECT_EQ(f.s->list_audit()[0].action, "custom.event");
