@@ -1,6 +1,8 @@
-// Store-facing commands: init, customer add|list|rotate-key, jobs list|show|retry|cancel, assets,
+// Store-facing commands: init, store migrate, customer add|list|rotate-key, jobs list|show|retry|cancel, assets,
 // copies, detections. Each takes --home (else $MESHMARK_HOME, else ./meshmark-home) and --json.
 // Nothing here ever prints key material: customers show key versions only.
+#include <unistd.h>
+
 #include <cstdio>
 #include <ctime>
 #include <functional>
@@ -10,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
+#include "store/copy_to_postgres.h"
 #include "store/home.h"
 
 namespace mm::cli {
@@ -162,15 +165,16 @@ void add_init(CLI::App& app) {
     // Check the key file is usable now rather than at the first protect job.
     if (!key_from_env) keys::load_master_key_file(home.master_key);
     auto s = open(*c);
+    const std::string database = home.store_url.empty() ? home.db : store::redacted_conninfo(home.store_url);
     if (c->json) {
-      std::cout << json{{"home", home.root}, {"database", home.db}, {"blobs", home.blobs},
+      std::cout << json{{"home", home.root}, {"database", database}, {"blobs", home.blobs},
                         {"master_key", key_from_env ? std::string("$") + keys::kMasterKeyEnv : home.master_key},
                         {"schema_version", s->schema_version()}, {"created", created}}
                        .dump(2)
                 << "\n";
     } else {
       std::cout << (created ? "initialized " : "already initialized ") << home.root << "\n"
-                << "  database    " << home.db << " (schema version " << s->schema_version() << ")\n"
+                << "  database    " << database << " (schema version " << s->schema_version() << ")\n"
                 << "  blobs       " << home.blobs << "\n"
                 << "  master key  "
                 << (key_from_env ? std::string("from $") + keys::kMasterKeyEnv : home.master_key + " (mode 0600; back it up)")
@@ -446,8 +450,36 @@ void refusing_store_errors(const std::function<void()>& f) {
   }
 }
 
+// meshmark store migrate --to postgresql://...: the home's SQLite store moved into PostgreSQL
+// (docs/store.md); the home keeps meshmark.db as it was, and nodes then name the database.
+void add_store_migrate(CLI::App& app) {
+  auto* grp = app.add_subcommand("store", "The store itself");
+  grp->require_subcommand(1);
+  auto c = std::make_shared<Common>();
+  auto to = std::make_shared<std::string>();
+  auto* mig = grp->add_subcommand("migrate", "Copy the home's SQLite store into an empty PostgreSQL database, ids kept");
+  mig->add_option("--to", *to, "the PostgreSQL database (postgresql://... or host=... dbname=...)")->required();
+  add_common(mig, *c);
+  mig->callback(guarded([c, to] {
+    const auto home = store::resolve_home(c->home);
+    if (::access(home.db.c_str(), F_OK) != 0)
+      throw CommandFailed(1, "no SQLite store at " + home.db + " to move (run: meshmark init --home " + home.root + ")");
+    const auto tables = store::copy_sqlite_to_postgres(home.db, *to);
+    if (c->json) {
+      json j = json::object();
+      for (const auto& t : tables) j[t.table] = t.rows;
+      std::cout << json{{"from", home.db}, {"to", store::redacted_conninfo(*to)}, {"rows", j}}.dump(2) << "\n";
+      return;
+    }
+    std::cout << "moved " << home.db << " into " << store::redacted_conninfo(*to) << "\n";
+    for (const auto& t : tables) std::cout << "  " << t.table << " " << t.rows << "\n";
+    std::cout << "nodes now name it: store.postgres in meshmarkd.json, MESHMARK_STORE for the CLI\n";
+  }));
+}
+
 void add_store_commands(CLI::App& app) {
   add_init(app);
+  add_store_migrate(app);
   add_customer(app);
   add_tokens(app);
   add_jobs(app);

@@ -2,6 +2,7 @@
 
 #include "http/server.h"
 #include "meshio/read_mesh.h"
+#include "store/home.h"
 
 #include <filesystem>
 #include <fstream>
@@ -146,7 +147,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
   cfg.source = source;
   c.known(j, "", {"home", "drop_dir", "output_dir", "master_key_file", "workers", "lease_seconds",
                   "heartbeat_seconds", "max_attempts", "shutdown_grace_seconds", "poll_interval_ms",
-                  "settle_ms", "use_inotify", "input_roots", "max_input_bytes", "max_triangles", "output_format", "watermark", "compression", "detect", "evidence", "cad", "http", "webhooks", "log_level",
+                  "settle_ms", "use_inotify", "input_roots", "max_input_bytes", "max_triangles", "output_format", "watermark", "compression", "detect", "evidence", "cad", "http", "webhooks", "store", "log_level",
                   "log_file", "$comment"});
   c.path(j, "home", cfg.home, true);
   c.path(j, "drop_dir", cfg.drop_dir, true);
@@ -270,6 +271,17 @@ Config parse_config(const std::string& text, const std::string& source, const st
       }
       c.integer(h, "http.", "threads", cfg.http_threads, 1, 64);
       c.integer(h, "http.", "max_body_bytes", cfg.http_max_body_bytes, 1024, 64 << 20);
+    }
+  }
+  if (j.contains("store")) {
+    const json& st = j["store"];
+    if (!st.is_object()) {
+      c.error("store", "must be an object");
+    } else {
+      c.known(st, "store.", {"postgres"});
+      c.string(st, "store.", "postgres", cfg.store_postgres);
+      if (st.contains("postgres") && cfg.store_postgres.empty())
+        c.error("store.postgres", "must name a PostgreSQL database (postgresql://... or host=... dbname=...)");
     }
   }
   if (j.contains("webhooks")) {
@@ -409,6 +421,7 @@ std::map<std::string, std::string> flatten(const Config& c) {
           {"max_input_bytes", std::to_string(c.max_input_bytes)},
           {"max_triangles", std::to_string(c.max_triangles)},
           {"http.listen", c.http_listen},
+          {"store.postgres", store::redacted_conninfo(c.store_postgres)},
           {"webhooks.endpoints", [&] {
              std::string v;
              for (const auto& e : c.webhooks) v += (v.empty() ? "" : ", ") + e.name + "=" + e.url;
@@ -436,7 +449,7 @@ std::vector<std::string> config_changes(const Config& before, const Config& afte
 
 bool needs_restart(const std::string& line) {
   for (const char* k : {"home:", "drop_dir:", "output_dir:", "master_key_file:", "workers:", "use_inotify:",
-                        "log_file:", "http.listen:", "http.threads:"})
+                        "log_file:", "http.listen:", "http.threads:", "store.postgres:"})
     if (line.rfind(k, 0) == 0) return true;
   return false;
 }

@@ -30,6 +30,9 @@ struct Config {
   std::string drop_dir;         // <drop>/protect/<customer>/, <drop>/detect/, done/, failed/
   std::string output_dir;       // protected copies: <output>/<customer>/<name>
   std::string master_key_file;  // "" = <home>/master.key
+  // store.postgres: the fleet's PostgreSQL database (conninfo); "" = the home's SQLite store.
+  // The home still holds the master key and the blobs, a folder every node mounts.
+  std::string store_postgres;
   // Folders a job's input_path may name a file under (symbolic links resolved first); none: every
   // input_path is refused, so a row in the jobs table cannot make the daemon read any file it can.
   std::vector<std::string> input_roots;

@@ -105,6 +105,7 @@ void setup_logging(const Config& cfg) {
 std::unique_ptr<store::Store> open_store(const Config& cfg) {
   auto home = store::resolve_home(cfg.home);
   home.master_key = cfg.master_key_path();
+  if (!cfg.store_postgres.empty()) home.store_url = cfg.store_postgres;
   return store::open_home(home, true);
 }
 

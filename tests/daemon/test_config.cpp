@@ -147,6 +147,30 @@ TEST_F(ConfigTest, ChangesListOldAndNewValues) {
   EXPECT_FALSE(needs_restart(ch[0]));
 }
 
+// store.postgres selects the fleet's database; its password never shows in the change log.
+TEST_F(ConfigTest, StorePostgresIsAConninfoShownWithoutItsPassword) {
+  Config a = parse_config("{" + base + "}", "t", dir.string(), true);
+  EXPECT_EQ(a.store_postgres, "");
+  Config b = parse_config("{" + base + R"(, "store": {"postgres": "postgresql://mm:s3cret@db.example/meshmark"}})", "t",
+                          dir.string(), true);
+  EXPECT_EQ(b.store_postgres, "postgresql://mm:s3cret@db.example/meshmark");
+  auto ch = config_changes(a, b);
+  ASSERT_EQ(ch.size(), 1u);
+  EXPECT_EQ(ch[0], "store.postgres:  -> postgresql://mm:***@db.example/meshmark");
+  EXPECT_TRUE(needs_restart(ch[0]));
+  Config c = parse_config("{" + base + R"(, "store": {"postgres": "host=db dbname=mm password='a b' user=mm"}})", "t",
+                          dir.string(), true);
+  ch = config_changes(a, c);
+  ASSERT_EQ(ch.size(), 1u);
+  EXPECT_EQ(ch[0].find("a b"), std::string::npos) << ch[0];
+  EXPECT_NE(ch[0].find("password=*** user=mm"), std::string::npos) << ch[0];
+  const std::string e = expect_error("{" + base + R"(, "store": {"postgres": 5, "sqlite": "x"}})");
+  for (const char* s : {"store.postgres: must be a string", "store.sqlite: unknown key"})
+    EXPECT_NE(e.find(s), std::string::npos) << s << "\n" << e;
+  EXPECT_NE(expect_error("{" + base + R"(, "store": {"postgres": ""}})").find("store.postgres: must name"),
+            std::string::npos);
+}
+
 TEST(ConfigExample, ShippedExampleIsValid) {
   Config c = load_config(std::string(MESHMARK_SOURCE_DIR) + "/config/meshmark.example.json", false);
   EXPECT_GE(c.workers, 1);

@@ -1,0 +1,194 @@
+// A fleet on PostgreSQL, end to end through the real binaries: a home whose store is a PostgreSQL
+// database (MESHMARK_STORE for the CLI, store.postgres in meshmarkd.json), two nodes working the
+// queue at once, every job done once, and a leak traced through the shared store.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <string>
+
+#include "common/postgres_server.h"
+#include "common/shared_meshes.h"
+#include "store/home.h"
+#include "store/pg_db.h"
+#include "store/pg_store.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  return std::string((std::istreambuf_iterator<char>(in)), {});
+}
+
+TEST(Fleet, TwoNodesOnOnePostgresDatabaseProtectOnceAndTraceALeak) {
+  MM_REQUIRE_SHARED_MESHES();
+  MM_REQUIRE_POSTGRES();
+  mm::test::PostgresServer server;
+  {
+    mm::store::pg::Connection admin(server.conninfo());
+    admin.exec("CREATE DATABASE fleet");
+  }
+  // Trust authentication ignores the password; it stands for one that must never be shown.
+  const std::string password = "s3cret-of-the-fleet";
+  const std::string conninfo = server.conninfo("fleet") + " password=" + password;
+  const fs::path dir = fs::temp_directory_path() / ("mm-fleet-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const fs::path home = dir / "home", drop = dir / "drop", out = dir / "out";
+  fs::create_directories(drop);
+  fs::create_directories(out);
+  ::unsetenv("MESHMARK_MASTER_KEY");
+  const std::string exe = MESHMARK_EXE;
+  const std::string env = "MESHMARK_STORE='" + conninfo + "' ";
+  auto sh = [&](const std::string& cmd) { return std::system((cmd + " >>" + (dir / "cli.log").string() + " 2>&1").c_str()); };
+
+  ASSERT_EQ(sh(env + exe + " init --home " + home.string()), 0) << slurp(dir / "cli.log");
+  ASSERT_EQ(sh(env + exe + " customer add alpha --home " + home.string()), 0) << slurp(dir / "cli.log");
+  ASSERT_EQ(sh(env + exe + " customer add beta --home " + home.string()), 0) << slurp(dir / "cli.log");
+  EXPECT_FALSE(fs::exists(home / "meshmark.db")) << "the store is the PostgreSQL database, not a SQLite file";
+
+  const fs::path cfg = dir / "meshmarkd.json";
+  std::ofstream(cfg) << json{{"home", home.string()},
+                             {"drop_dir", drop.string()},
+                             {"output_dir", out.string()},
+                             {"workers", 1},
+                             {"lease_seconds", 30},
+                             {"heartbeat_seconds", 2},
+                             {"poll_interval_ms", 100},
+                             {"output_format", "off"},
+                             {"store", {{"postgres", conninfo}}}}
+                            .dump();
+  const std::string part = mm::test::shared_mesh("abc7.stl"), other = mm::test::shared_mesh("chamfer-cube.off");
+  for (const char* customer : {"alpha", "beta"})
+    for (const std::string& file : {part, other})
+      ASSERT_EQ(sh(exe + " submit protect --config " + cfg.string() + " --customer " + customer + " " + file), 0)
+          << slurp(dir / "cli.log");
+
+  // Two nodes work the queue at once.
+  const std::string run = exe + " run --until-empty --no-drops --config " + cfg.string();
+  const std::string both = "(" + run + " & " + run + " & wait)";
+  ASSERT_EQ(sh(both), 0) << slurp(dir / "cli.log");
+
+  mm::store::StoreOptions o;
+  o.blob_dir = (home / "blobs").string();
+  auto st = mm::store::open_postgres_store(conninfo, o);
+  const auto jobs = st->list_jobs({});
+  ASSERT_EQ(jobs.size(), 4u);
+  for (const auto& j : jobs) {
+    EXPECT_EQ(j.state, mm::store::JobState::completed) << j.id << " " << j.result_json;
+    EXPECT_EQ(j.attempt, 1) << "each job claimed once";
+  }
+  const auto copies = st->list_copies();
+  ASSERT_EQ(copies.size(), 4u) << "one copy per customer and part, none twice";
+
+  // beta's copy of abc7 leaks; either node traces it through the shared store.
+  fs::path leaked;
+  const auto beta = st->find_customer("beta");
+  for (const auto& c : copies) {
+    if (c.customer_id != beta->id || st->get_asset(c.asset_id)->name != "abc7.stl") continue;
+    const json outputs = json::parse(c.outputs_json);  // outlives the loop over its files
+    for (const auto& f : outputs["files"])
+      if (f["role"] == "decoded") leaked = f["path"].get<std::string>();
+  }
+  ASSERT_FALSE(leaked.empty());
+  ASSERT_EQ(sh(exe + " submit detect --config " + cfg.string() + " " + leaked.string()), 0) << slurp(dir / "cli.log");
+  ASSERT_EQ(sh(run), 0) << slurp(dir / "cli.log");
+  const auto dets = st->list_detections();
+  ASSERT_EQ(dets.size(), 1u);
+  EXPECT_EQ(dets[0].verdict, "attributed") << dets[0].details_json.substr(0, 400);
+  ASSERT_TRUE(dets[0].customer_id);
+  EXPECT_EQ(*dets[0].customer_id, beta->id);
+  // The password never reaches the output.
+  EXPECT_EQ(slurp(dir / "cli.log").find(password), std::string::npos);
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+// A single machine's SQLite store moved into PostgreSQL (meshmark store migrate --to): the old
+// detection is there with its id, and the old leak detected again on the fleet's store gives the
+// same verdict and p-value, bit for bit.
+TEST(Fleet, AStoreMovedFromSqliteIntoPostgresTracesAnOldLeakTheSame) {
+  MM_REQUIRE_SHARED_MESHES();
+  MM_REQUIRE_POSTGRES();
+  mm::test::PostgresServer server;
+  {
+    mm::store::pg::Connection admin(server.conninfo());
+    admin.exec("CREATE DATABASE moved");
+  }
+  const std::string password = "s3cret-of-the-move";
+  const std::string conninfo = server.conninfo("moved") + " password=" + password;
+  const fs::path dir = fs::temp_directory_path() / ("mm-moved-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const fs::path home = dir / "home", drop = dir / "drop", out = dir / "out";
+  fs::create_directories(drop);
+  fs::create_directories(out);
+  ::unsetenv("MESHMARK_MASTER_KEY");
+  ::unsetenv("MESHMARK_STORE");
+  const std::string exe = MESHMARK_EXE;
+  auto sh = [&](const std::string& cmd) { return std::system((cmd + " >>" + (dir / "cli.log").string() + " 2>&1").c_str()); };
+  ASSERT_EQ(sh(exe + " init --home " + home.string()), 0) << slurp(dir / "cli.log");
+  for (const char* customer : {"alpha", "beta"})
+    ASSERT_EQ(sh(exe + " customer add " + customer + " --home " + home.string()), 0) << slurp(dir / "cli.log");
+  json config{{"home", home.string()}, {"drop_dir", drop.string()}, {"output_dir", out.string()},
+              {"workers", 1},          {"poll_interval_ms", 100},   {"output_format", "off"}};
+  const fs::path sqlite_cfg = dir / "single.json", fleet_cfg = dir / "fleet.json";
+  std::ofstream(sqlite_cfg) << config.dump();
+  config["store"] = {{"postgres", conninfo}};
+  std::ofstream(fleet_cfg) << config.dump();
+  const std::string part = mm::test::shared_mesh("abc7.stl");
+  for (const char* customer : {"alpha", "beta"})
+    ASSERT_EQ(sh(exe + " submit protect --config " + sqlite_cfg.string() + " --customer " + customer + " " + part), 0);
+  ASSERT_EQ(sh(exe + " run --until-empty --no-drops --config " + sqlite_cfg.string()), 0) << slurp(dir / "cli.log");
+  auto single = mm::store::open_home(mm::store::resolve_home(home.string()), false);
+  fs::path leaked;
+  const auto beta = single->find_customer("beta");
+  for (const auto& c : single->list_copies()) {
+    if (c.customer_id != beta->id) continue;
+    const json outputs = json::parse(c.outputs_json);  // outlives the loop over its files
+    for (const auto& f : outputs["files"])
+      if (f["role"] == "decoded") leaked = f["path"].get<std::string>();
+  }
+  ASSERT_FALSE(leaked.empty());
+  ASSERT_EQ(sh(exe + " submit detect --config " + sqlite_cfg.string() + " " + leaked.string()), 0);
+  ASSERT_EQ(sh(exe + " run --until-empty --no-drops --config " + sqlite_cfg.string()), 0) << slurp(dir / "cli.log");
+  const auto before = single->list_detections();
+  ASSERT_EQ(before.size(), 1u);
+  ASSERT_EQ(before[0].verdict, "attributed");
+  const auto jobs_before = single->list_jobs({}).size();
+  single.reset();
+
+  ASSERT_EQ(sh(exe + " store migrate --to '" + conninfo + "' --home " + home.string()), 0) << slurp(dir / "cli.log");
+  EXPECT_NE(sh(exe + " store migrate --to '" + conninfo + "' --home " + home.string()), 0)
+      << "a second move into a database that holds the first is refused";
+  mm::store::StoreOptions o;
+  o.blob_dir = (home / "blobs").string();
+  auto fleet = mm::store::open_postgres_store(conninfo, o);
+  ASSERT_EQ(fleet->list_detections().size(), 1u);
+  EXPECT_EQ(fleet->list_detections()[0].id, before[0].id);
+  EXPECT_EQ(fleet->list_copies().size(), 2u);
+  EXPECT_EQ(fleet->list_jobs({}).size(), jobs_before);
+
+  // Under another name: the same file and name would be the moved detect job itself (its key).
+  const fs::path again = dir / "leak-on-the-fleet.off";
+  fs::copy_file(leaked, again);
+  ASSERT_EQ(sh(exe + " submit detect --config " + fleet_cfg.string() + " " + again.string()), 0);
+  ASSERT_EQ(sh(exe + " run --until-empty --no-drops --config " + fleet_cfg.string()), 0) << slurp(dir / "cli.log");
+  const auto after = fleet->list_detections();
+  ASSERT_EQ(after.size(), 2u);
+  EXPECT_GT(after[0].id, before[0].id) << "new ids continue after the moved ones";
+  EXPECT_EQ(after[0].verdict, before[0].verdict);
+  EXPECT_EQ(after[0].customer_id, before[0].customer_id);
+  EXPECT_EQ(after[0].copy_id, before[0].copy_id);
+  ASSERT_TRUE(after[0].p_value && before[0].p_value);
+  EXPECT_EQ(*after[0].p_value, *before[0].p_value) << "the same numbers, bit for bit";
+  EXPECT_EQ(slurp(dir / "cli.log").find(password), std::string::npos);
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+}  // namespace
