@@ -2,6 +2,7 @@
 // a resident daemon). See docs/daemon.md.
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 
@@ -64,9 +65,58 @@ void submit(SubmitOptions& o, bool protect) {
   }
 }
 
+// meshmark fleet status: the daemons sharing the store, the leader, what each is running, and
+// the queue's depth per kind.
+void fleet_status(SubmitOptions& o) {
+  try {
+    refusing_store_errors([&] {
+      auto st = open_for_submit(o);
+      const store::Millis now = st->now();
+      const auto nodes = st->list_nodes();
+      std::map<std::string, int> running;  // node -> running jobs (worker ids are node:wN)
+      for (const auto& j : st->list_jobs({store::JobState::running, "", 100000, 0})) {
+        const auto w = j.worker_id.rfind(":w");
+        ++running[w == std::string::npos ? j.worker_id : j.worker_id.substr(0, w)];
+      }
+      const auto depth = st->metrics({}).queue_depth;
+      if (o.json) {
+        json jn = json::array(), jd = json::object();
+        for (const auto& n : nodes)
+          jn.push_back({{"name", n.name}, {"workers", n.workers}, {"started_at", store::iso_utc(n.started_at)},
+                        {"seen_seconds_ago", (now - n.seen_at) / 1000}, {"leader", n.leader},
+                        {"running", running.count(n.name) ? running[n.name] : 0}});
+        for (const auto& [kind, n] : depth) jd[kind] = n;
+        std::cout << json{{"nodes", jn}, {"queue_depth", jd}}.dump(2) << "\n";
+        return;
+      }
+      std::cout << "nodes: " << nodes.size() << "\n";
+      for (const auto& n : nodes)
+        std::cout << "  " << n.name << (n.leader ? "  leader" : "") << "  " << n.workers << " workers, running "
+                  << (running.count(n.name) ? running[n.name] : 0) << ", seen " << (now - n.seen_at) / 1000
+                  << " s ago, up since " << store::iso_utc(n.started_at) << "\n";
+      std::cout << "queue (available and retryable):";
+      if (depth.empty()) std::cout << " empty";
+      for (const auto& [kind, n] : depth) std::cout << " " << kind << " " << n;
+      std::cout << "\n";
+    });
+  } catch (const service::ConfigError& e) {
+    throw CommandFailed(78, e.what());
+  }
+}
+
 }  // namespace
 
 void add_run_commands(CLI::App& app) {
+  {
+    auto o = std::make_shared<SubmitOptions>();
+    auto* fleet = app.add_subcommand("fleet", "The daemons sharing the store (a fleet on PostgreSQL)");
+    fleet->require_subcommand(1);
+    auto* status = fleet->add_subcommand("status", "Nodes, their beats, the leader, running jobs, queue depth per kind");
+    status->add_option("--home", o->home, "meshmark home folder (default: $MESHMARK_HOME or ./meshmark-home)");
+    status->add_option("--config", o->config, "take the home and store from this meshmarkd configuration");
+    status->add_flag("--json", o->json, "print JSON for scripts");
+    status->callback([o] { fleet_status(*o); });
+  }
   auto* grp = app.add_subcommand("submit", "Enqueue files as protect or detect jobs");
   grp->require_subcommand(1);
   for (bool protect : {true, false}) {

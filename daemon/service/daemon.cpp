@@ -36,12 +36,6 @@ std::int64_t now_ms() {
       .count();
 }
 
-std::string host_prefix() {
-  char host[256] = {0};
-  ::gethostname(host, sizeof host - 1);
-  return std::string(host) + ":" + std::to_string(::getpid());
-}
-
 // Temporary files a writer leaves when a process dies mid-write (support/atomic_file.h) in
 // <output>/<customer>/. Only this daemon writes there, and none of its workers is running yet.
 int remove_stale_output_temps(const std::string& output_dir) {
@@ -87,6 +81,12 @@ class EscapedMessage final : public spdlog::custom_flag_formatter {
 };
 
 }  // namespace
+
+std::string host_prefix() {
+  char host[256] = {0};
+  ::gethostname(host, sizeof host - 1);
+  return std::string(host) + ":" + std::to_string(::getpid());
+}
 
 void setup_logging(const Config& cfg) {
   std::shared_ptr<spdlog::logger> logger;
@@ -232,6 +232,21 @@ void Daemon::check_inflight() {
   }
 }
 
+bool Daemon::beat_fleet(const Config& cfg) {
+  const auto now = std::chrono::steady_clock::now();
+  if (now < next_beat_) return leader_;
+  // A beat every heartbeat_seconds, a lease of three: a killed leader is replaced within that.
+  next_beat_ = now + std::chrono::seconds(cfg.heartbeat_seconds);
+  try {
+    const bool leads = store_->beat_node(node_, cfg.workers, store::Millis(3) * cfg.heartbeat_seconds * 1000);
+    if (leads != leader_) spdlog::info("fleet: {} {} the leader", node_, leads ? "is now" : "is no longer");
+    leader_ = leads;
+  } catch (const std::exception& e) {
+    spdlog::warn("fleet: beat failed: {}", e.what());
+  }
+  return leader_;
+}
+
 void Daemon::deliver_webhooks(const Config& cfg) {
   try {
     if (int n = dispatch_webhooks(*store_, cfg); n > 0 && !cfg.webhooks.empty())
@@ -324,7 +339,14 @@ int Daemon::run() {
     if (stopping) break;
     for (const auto& item : watcher_->poll(now_ms())) handle_drop(item);
     check_inflight();
-    deliver_webhooks(*cfg);
+    // The leader alone turns job events into webhook deliveries; the others would only queue
+    // behind its lock on the event cursor.
+    if (beat_fleet(*cfg)) deliver_webhooks(*cfg);
+  }
+  try {
+    store_->leave_fleet(node_);
+  } catch (const std::exception& e) {
+    spdlog::warn("fleet: cannot leave: {}", e.what());
   }
 
   cfg = config();

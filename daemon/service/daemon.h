@@ -5,6 +5,7 @@
 // within shutdown_grace_seconds, else release them to the queue), SIGHUP reloads the config and
 // logs what changed. Dropped files are moved to done/ or failed/ when their job is final.
 #pragma once
+#include <chrono>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -30,6 +31,9 @@ struct BatchSummary {
   store::QueueCounts counts;
 };
 
+// host:pid of this process: the prefix of its workers' ids and its name in the fleet.
+std::string host_prefix();
+
 class Daemon {
  public:
   explicit Daemon(Config cfg);
@@ -46,7 +50,10 @@ class Daemon {
   void check_inflight();
   void finalize(const DropItem& item, const store::Job& job);
   void start_api();
-  void deliver_webhooks(const Config& cfg);  // job events -> webhook delivery jobs  // when http.listen is set: its own store connection, then the server
+  void deliver_webhooks(const Config& cfg);  // job events -> webhook delivery jobs
+  // This node's beat in the store's fleet (every heartbeat_seconds); true while it holds the
+  // leader lease.
+  bool beat_fleet(const Config& cfg);
 
   mutable std::mutex cfg_m_;
   std::shared_ptr<const Config> cfg_;
@@ -58,6 +65,9 @@ class Daemon {
   std::unique_ptr<http::Server> http_;
   std::map<std::int64_t, DropItem> inflight_;  // job id -> dropped file
   int submitted_ = 0;
+  std::string node_ = host_prefix();  // host:pid, the prefix of this daemon's worker ids
+  bool leader_ = false;
+  std::chrono::steady_clock::time_point next_beat_{};
 };
 
 }  // namespace mm::service

@@ -664,6 +664,35 @@ class PgStore final : public Store {
         "REPEATABLE READ");  // one snapshot
   }
 
+  bool beat_node(const std::string& node, int workers, Millis lease_ms) override {
+    std::lock_guard<std::mutex> l(m_);
+    return in_transaction(c_, [&] {
+      const Millis t = now();
+      c_.exec(kBeatNode, {p(node), p(std::int64_t{workers}), p(t)}, "recording the node's beat");
+      const bool leads = c_.exec(kTakeLead, {p(node), p(t + lease_ms), p(t)}, "renewing the leader lease").rows() > 0;
+      if (leads) c_.exec(kForgetNodes, {p(t - kForgetNodeAfter)}, "forgetting nodes gone for a day");
+      return leads;
+    });
+  }
+
+  std::vector<FleetNode> list_nodes() override {
+    std::lock_guard<std::mutex> l(m_);
+    const Result r = c_.exec(kListNodes, {p(now())}, "listing the fleet");
+    std::vector<FleetNode> out;
+    for (int i = 0; i < r.rows(); ++i)
+      out.push_back({r.text(i, 0), static_cast<int>(r.i64(i, 1)), r.i64(i, 2), r.i64(i, 3), r.i64(i, 4) != 0,
+                     r.i64(i, 5)});
+    return out;
+  }
+
+  void leave_fleet(const std::string& node) override {
+    std::lock_guard<std::mutex> l(m_);
+    in_transaction(c_, [&] {
+      c_.exec("DELETE FROM nodes WHERE name = $1", {p(node)}, "leaving the fleet");
+      c_.exec("DELETE FROM leader WHERE node = $1", {p(node)}, "giving up the leader lease");
+    });
+  }
+
   // No invalid index and the schema this binary expects (PostgreSQL checks its pages itself).
   bool integrity_ok() override {
     std::lock_guard<std::mutex> l(m_);

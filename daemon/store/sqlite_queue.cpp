@@ -307,3 +307,42 @@ bool SqliteStore::integrity_ok() {
 }
 
 }  // namespace mm::store::sqlite_detail
+
+namespace mm::store::sqlite_detail {
+
+bool SqliteStore::beat_node(const std::string& node, int workers, Millis lease_ms) {
+  std::lock_guard<std::mutex> l(m_);
+  UnsyncedCommits unsynced(db_, opt_.synchronous_full);
+  Tx tx(db_);
+  const Millis t = now();
+  Stmt(db_, kBeatNode).bind(1, node).bind(2, workers).bind(3, t).run();
+  Stmt lead(db_, kTakeLead);
+  lead.bind(1, node).bind(2, t + lease_ms).bind(3, t);
+  const bool leads = lead.step();
+  if (leads) {
+    lead.run();
+    Stmt(db_, kForgetNodes).bind(1, t - kForgetNodeAfter).run();
+  }
+  tx.commit();
+  return leads;
+}
+
+std::vector<FleetNode> SqliteStore::list_nodes() {
+  std::lock_guard<std::mutex> l(m_);
+  Stmt q(db_, kListNodes);
+  q.bind(1, now());
+  std::vector<FleetNode> out;
+  while (q.step())
+    out.push_back({q.text(0), static_cast<int>(q.i64(1)), q.i64(2), q.i64(3), q.i64(4) != 0, q.i64(5)});
+  return out;
+}
+
+void SqliteStore::leave_fleet(const std::string& node) {
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  Stmt(db_, "DELETE FROM nodes WHERE name = ?").bind(1, node).run();
+  Stmt(db_, "DELETE FROM leader WHERE node = ?").bind(1, node).run();
+  tx.commit();
+}
+
+}  // namespace mm::store::sqlite_detail

@@ -215,6 +215,10 @@ class SqliteStore final : public Store {
 
   bool integrity_ok() override;
 
+  bool beat_node(const std::string& node, int workers, Millis lease_ms) override;
+  std::vector<FleetNode> list_nodes() override;
+  void leave_fleet(const std::string& node) override;
+
  private:
   static std::string blob_dir(const StoreOptions& o) {
     if (!o.blob_dir.empty()) return o.blob_dir;

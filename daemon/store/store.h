@@ -287,6 +287,16 @@ struct JobEvent {
   Millis at = 0;
 };
 
+// A daemon sharing the store (meshmark fleet status).
+struct FleetNode {
+  std::string name;  // host:pid, the prefix of its workers' ids
+  int workers = 0;
+  Millis started_at = 0;
+  Millis seen_at = 0;      // its last beat
+  bool leader = false;     // holds the leader lease now
+  Millis leader_until = 0; // when that lease runs out (0 when not the leader)
+};
+
 struct BackoffPolicy {
   Millis base = 1000;         // delay after the 1st failure; doubles per attempt
   Millis max = 3600 * 1000;   // cap
@@ -406,6 +416,13 @@ class Store {
 
   // The counters, gauges and histograms of /metrics; bucket_seconds ascending.
   virtual StoreMetrics metrics(const std::vector<double>& bucket_seconds) = 0;
+
+  // Fleet: `node` is alive (its row made or refreshed, seen now) and takes the leader lease for
+  // lease_ms when the lease is free, run out, or already its own; one transaction. True while it
+  // leads. leave_fleet removes the node's row and gives its lease up (a clean stop).
+  virtual bool beat_node(const std::string& node, int workers, Millis lease_ms) = 0;
+  virtual std::vector<FleetNode> list_nodes() = 0;
+  virtual void leave_fleet(const std::string& node) = 0;
 
   // PRAGMA integrity_check == "ok" (or the backend's equivalent).
   virtual bool integrity_ok() = 0;

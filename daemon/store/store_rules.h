@@ -67,6 +67,24 @@ inline std::string format_from_name(const std::string& name) {
 }
 
 
+// The fleet's statements, the same in both dialects ($1.. as SQLite reads ?NNN too): a node's
+// beat ($1 name, $2 workers, $3 now), the leader lease taken when free, run out or already its
+// own ($1 name, $2 until, $3 now; a row back when this node leads), nodes not seen for a day
+// forgotten ($1 before), the nodes with the lease ($1 now).
+constexpr const char* kBeatNode =
+    "INSERT INTO nodes(name, workers, started_at, seen_at) VALUES($1, $2, $3, $3) "
+    "ON CONFLICT(name) DO UPDATE SET workers = excluded.workers, seen_at = excluded.seen_at";
+constexpr const char* kTakeLead =
+    "INSERT INTO leader(id, node, until) VALUES(1, $1, $2) ON CONFLICT(id) DO UPDATE SET node = excluded.node, "
+    "until = excluded.until WHERE leader.node = excluded.node OR leader.until < $3 RETURNING node";
+constexpr const char* kForgetNodes = "DELETE FROM nodes WHERE seen_at < $1";
+constexpr const char* kListNodes =
+    "SELECT n.name, n.workers, n.started_at, n.seen_at, "
+    "CASE WHEN l.node = n.name AND l.until >= $1 THEN 1 ELSE 0 END, "
+    "CASE WHEN l.node = n.name AND l.until >= $1 THEN l.until ELSE 0 END "
+    "FROM nodes n LEFT JOIN leader l ON l.id = 1 ORDER BY n.name";
+constexpr Millis kForgetNodeAfter = Millis{24} * 3600 * 1000;
+
 // Delay before the next attempt after `attempt` failures: base doubling per attempt, capped, plus
 // jitter.
 inline Millis backoff_delay(const BackoffPolicy& b, int attempt, std::mt19937_64& rng) {

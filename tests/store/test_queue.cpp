@@ -477,3 +477,51 @@ TEST(QueueOnSqlite, ReadsWorkWhileAnotherConnectionHoldsTheWriteLock) {
   writer.exec("COMMIT", "commit");
   EXPECT_EQ(reader->list_jobs({}).size(), 2u);
 }
+
+// The fleet's nodes and leader lease (meshmark fleet status): one leader at a time, on the
+// store's clock; a leader that stops beating is replaced once its lease has run out, one that
+// leaves gives the lease up at once.
+TEST_P(Queue, OneNodeLeadsUntilItsLeaseRunsOutOrItLeaves) {
+  TempDir dir;
+  StepClock clock;
+  auto a = open_store(dir, options(dir, &clock));
+  auto b = open_store(dir, options(dir, &clock));
+  EXPECT_TRUE(a->beat_node("host-a:11", 2, 10'000));
+  EXPECT_FALSE(b->beat_node("host-b:22", 4, 10'000)) << "the lease is a's";
+  clock.advance(6'000);
+  EXPECT_TRUE(a->beat_node("host-a:11", 2, 10'000)) << "the leader renews its own lease";
+  EXPECT_FALSE(b->beat_node("host-b:22", 4, 10'000));
+  auto nodes = b->list_nodes();
+  ASSERT_EQ(nodes.size(), 2u);
+  EXPECT_EQ(nodes[0].name, "host-a:11");
+  EXPECT_TRUE(nodes[0].leader);
+  EXPECT_EQ(nodes[0].leader_until, clock.now() + 10'000);
+  EXPECT_EQ(nodes[0].workers, 2);
+  EXPECT_EQ(nodes[0].started_at, clock.now() - 6'000);
+  EXPECT_EQ(nodes[1].name, "host-b:22");
+  EXPECT_FALSE(nodes[1].leader);
+  EXPECT_EQ(nodes[1].workers, 4);
+  EXPECT_EQ(nodes[1].seen_at, clock.now());
+  // a is killed: it beats no more. Within the lease b still waits; after it, b leads.
+  clock.advance(9'999);
+  EXPECT_FALSE(b->beat_node("host-b:22", 4, 10'000));
+  clock.advance(2);
+  EXPECT_TRUE(b->beat_node("host-b:22", 4, 10'000)) << "replaced once the lease ran out";
+  EXPECT_FALSE(a->beat_node("host-a:11", 2, 10'000)) << "a stale leader does not take it back";
+  nodes = a->list_nodes();
+  ASSERT_EQ(nodes.size(), 2u);
+  EXPECT_FALSE(nodes[0].leader);
+  EXPECT_TRUE(nodes[1].leader);
+  // b stops cleanly: the lease is free at once.
+  b->leave_fleet("host-b:22");
+  EXPECT_EQ(a->list_nodes().size(), 1u);
+  EXPECT_TRUE(a->beat_node("host-a:11", 2, 10'000));
+  // Nodes gone for a day are forgotten by the leader.
+  auto c = open_store(dir, options(dir, &clock));
+  EXPECT_FALSE(c->beat_node("host-c:33", 1, 10'000));
+  clock.advance(25LL * 3600 * 1000);
+  EXPECT_TRUE(a->beat_node("host-a:11", 2, 10'000));
+  nodes = a->list_nodes();
+  ASSERT_EQ(nodes.size(), 1u);
+  EXPECT_EQ(nodes[0].name, "host-a:11");
+}
