@@ -33,147 +33,143 @@ std::string slurp(const fs::path& p) {
   return std::string((std::istreambuf_iterator<char>(in)), {});
 }
 
-TEST(Fleet, TwoNodesOnOnePostgresDatabaseProtectOnceAndTraceALeak) {
-  MM_REQUIRE_SHARED_MESHES();
-  MM_REQUIRE_POSTGRES();
-  mm::test::PostgresServer server;
-  {
-    mm::store::pg::Connection admin(server.conninfo());
-    admin.exec("CREATE DATABASE fleet");
+// A throwaway PostgreSQL server with one database, the test's folders (home, drop, out) and the
+// CLI run with its output collected in cli.log. The password in the conninfo is ignored (trust
+// authentication) and stands for one that must never be shown.
+class Fleet : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    MM_REQUIRE_POSTGRES();
+    server_ = std::make_unique<mm::test::PostgresServer>();
+    mm::store::pg::Connection(server_->conninfo()).exec("CREATE DATABASE fleet");
+    conninfo = server_->conninfo("fleet") + " password=" + password;
+    dir = fs::temp_directory_path() /
+          ("mm-fleet-" + std::to_string(::getpid()) + "-" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir);
+    home = dir / "home";
+    drop = dir / "drop";
+    out = dir / "out";
+    fs::create_directories(drop);
+    fs::create_directories(out);
+    ::unsetenv("MESHMARK_MASTER_KEY");
+    ::unsetenv("MESHMARK_STORE");
   }
-  // Trust authentication ignores the password; it stands for one that must never be shown.
-  const std::string password = "s3cret-of-the-fleet";
-  const std::string conninfo = server.conninfo("fleet") + " password=" + password;
-  const fs::path dir = fs::temp_directory_path() / ("mm-fleet-" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  const fs::path home = dir / "home", drop = dir / "drop", out = dir / "out";
-  fs::create_directories(drop);
-  fs::create_directories(out);
-  ::unsetenv("MESHMARK_MASTER_KEY");
+  void TearDown() override {
+    if (!HasFailure() && !dir.empty()) fs::remove_all(dir);
+  }
+  int sh(const std::string& cmd) { return std::system((cmd + " >>" + (dir / "cli.log").string() + " 2>&1").c_str()); }
+  std::string cli_log() { return slurp(dir / "cli.log"); }
+  // meshmarkd.json for this test's folders, with `extra` keys.
+  fs::path write_config(const std::string& name, const json& extra) {
+    json c{{"home", home.string()}, {"drop_dir", drop.string()}, {"output_dir", out.string()},
+           {"workers", 1},          {"poll_interval_ms", 100},   {"output_format", "off"}};
+    c.update(extra);
+    std::ofstream(dir / name) << c.dump();
+    return dir / name;
+  }
+  // The path of `customer`'s decoded copy in the store.
+  fs::path decoded_copy(mm::store::Store& st, const std::string& customer) {
+    const auto who = st.find_customer(customer);
+    for (const auto& c : st.list_copies()) {
+      if (c.customer_id != who->id) continue;
+      const json outputs = json::parse(c.outputs_json);  // outlives the loop over its files
+      for (const auto& f : outputs["files"])
+        if (f["role"] == "decoded") return f["path"].get<std::string>();
+    }
+    return {};
+  }
+  std::unique_ptr<mm::store::Store> fleet_store() {
+    mm::store::StoreOptions o;
+    o.blob_dir = (home / "blobs").string();
+    return mm::store::open_postgres_store(conninfo, o);
+  }
+
   const std::string exe = MESHMARK_EXE;
+  const std::string password = "s3cret-of-the-fleet";
+  std::string conninfo;
+  fs::path dir, home, drop, out;
+
+ private:
+  std::unique_ptr<mm::test::PostgresServer> server_;
+};
+
+TEST_F(Fleet, TwoNodesOnOnePostgresDatabaseProtectOnceAndTraceALeak) {
+  MM_REQUIRE_SHARED_MESHES();
   const std::string env = "MESHMARK_STORE='" + conninfo + "' ";
-  auto sh = [&](const std::string& cmd) { return std::system((cmd + " >>" + (dir / "cli.log").string() + " 2>&1").c_str()); };
-
-  ASSERT_EQ(sh(env + exe + " init --home " + home.string()), 0) << slurp(dir / "cli.log");
-  ASSERT_EQ(sh(env + exe + " customer add alpha --home " + home.string()), 0) << slurp(dir / "cli.log");
-  ASSERT_EQ(sh(env + exe + " customer add beta --home " + home.string()), 0) << slurp(dir / "cli.log");
+  ASSERT_EQ(sh(env + exe + " init --home " + home.string()), 0) << cli_log();
+  ASSERT_EQ(sh(env + exe + " customer add alpha --home " + home.string()), 0) << cli_log();
+  ASSERT_EQ(sh(env + exe + " customer add beta --home " + home.string()), 0) << cli_log();
   EXPECT_FALSE(fs::exists(home / "meshmark.db")) << "the store is the PostgreSQL database, not a SQLite file";
-
-  const fs::path cfg = dir / "meshmarkd.json";
-  std::ofstream(cfg) << json{{"home", home.string()},
-                             {"drop_dir", drop.string()},
-                             {"output_dir", out.string()},
-                             {"workers", 1},
-                             {"lease_seconds", 30},
-                             {"heartbeat_seconds", 2},
-                             {"poll_interval_ms", 100},
-                             {"output_format", "off"},
-                             {"store", {{"postgres", conninfo}}}}
-                            .dump();
+  const fs::path cfg = write_config("meshmarkd.json", {{"lease_seconds", 30}, {"heartbeat_seconds", 2},
+                                                       {"store", {{"postgres", conninfo}}}});
   const std::string part = mm::test::shared_mesh("abc7.stl"), other = mm::test::shared_mesh("chamfer-cube.off");
   for (const char* customer : {"alpha", "beta"})
     for (const std::string& file : {part, other})
       ASSERT_EQ(sh(exe + " submit protect --config " + cfg.string() + " --customer " + customer + " " + file), 0)
-          << slurp(dir / "cli.log");
+          << cli_log();
 
   // Two nodes work the queue at once.
   const std::string run = exe + " run --until-empty --no-drops --config " + cfg.string();
-  const std::string both = "(" + run + " & " + run + " & wait)";
-  ASSERT_EQ(sh(both), 0) << slurp(dir / "cli.log");
+  ASSERT_EQ(sh("(" + run + " & " + run + " & wait)"), 0) << cli_log();
 
-  mm::store::StoreOptions o;
-  o.blob_dir = (home / "blobs").string();
-  auto st = mm::store::open_postgres_store(conninfo, o);
+  auto st = fleet_store();
   const auto jobs = st->list_jobs({});
   ASSERT_EQ(jobs.size(), 4u);
   for (const auto& j : jobs) {
     EXPECT_EQ(j.state, mm::store::JobState::completed) << j.id << " " << j.result_json;
     EXPECT_EQ(j.attempt, 1) << "each job claimed once";
   }
-  const auto copies = st->list_copies();
-  ASSERT_EQ(copies.size(), 4u) << "one copy per customer and part, none twice";
+  ASSERT_EQ(st->list_copies().size(), 4u) << "one copy per customer and part, none twice";
 
   // beta's copy of abc7 leaks; either node traces it through the shared store.
   fs::path leaked;
   const auto beta = st->find_customer("beta");
-  for (const auto& c : copies) {
+  for (const auto& c : st->list_copies()) {
     if (c.customer_id != beta->id || st->get_asset(c.asset_id)->name != "abc7.stl") continue;
     const json outputs = json::parse(c.outputs_json);  // outlives the loop over its files
     for (const auto& f : outputs["files"])
       if (f["role"] == "decoded") leaked = f["path"].get<std::string>();
   }
   ASSERT_FALSE(leaked.empty());
-  ASSERT_EQ(sh(exe + " submit detect --config " + cfg.string() + " " + leaked.string()), 0) << slurp(dir / "cli.log");
-  ASSERT_EQ(sh(run), 0) << slurp(dir / "cli.log");
+  ASSERT_EQ(sh(exe + " submit detect --config " + cfg.string() + " " + leaked.string()), 0) << cli_log();
+  ASSERT_EQ(sh(run), 0) << cli_log();
   const auto dets = st->list_detections();
   ASSERT_EQ(dets.size(), 1u);
   EXPECT_EQ(dets[0].verdict, "attributed") << dets[0].details_json.substr(0, 400);
   ASSERT_TRUE(dets[0].customer_id);
   EXPECT_EQ(*dets[0].customer_id, beta->id);
-  // The password never reaches the output.
-  EXPECT_EQ(slurp(dir / "cli.log").find(password), std::string::npos);
-  if (!HasFailure()) fs::remove_all(dir);
+  EXPECT_EQ(cli_log().find(password), std::string::npos) << "the password never reaches the output";
 }
 
 // A single machine's SQLite store moved into PostgreSQL (meshmark store migrate --to): the old
 // detection is there with its id, and the old leak detected again on the fleet's store gives the
 // same verdict and p-value, bit for bit.
-TEST(Fleet, AStoreMovedFromSqliteIntoPostgresTracesAnOldLeakTheSame) {
+TEST_F(Fleet, AStoreMovedFromSqliteIntoPostgresTracesAnOldLeakTheSame) {
   MM_REQUIRE_SHARED_MESHES();
-  MM_REQUIRE_POSTGRES();
-  mm::test::PostgresServer server;
-  {
-    mm::store::pg::Connection admin(server.conninfo());
-    admin.exec("CREATE DATABASE moved");
-  }
-  const std::string password = "s3cret-of-the-move";
-  const std::string conninfo = server.conninfo("moved") + " password=" + password;
-  const fs::path dir = fs::temp_directory_path() / ("mm-moved-" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  const fs::path home = dir / "home", drop = dir / "drop", out = dir / "out";
-  fs::create_directories(drop);
-  fs::create_directories(out);
-  ::unsetenv("MESHMARK_MASTER_KEY");
-  ::unsetenv("MESHMARK_STORE");
-  const std::string exe = MESHMARK_EXE;
-  auto sh = [&](const std::string& cmd) { return std::system((cmd + " >>" + (dir / "cli.log").string() + " 2>&1").c_str()); };
-  ASSERT_EQ(sh(exe + " init --home " + home.string()), 0) << slurp(dir / "cli.log");
+  ASSERT_EQ(sh(exe + " init --home " + home.string()), 0) << cli_log();
   for (const char* customer : {"alpha", "beta"})
-    ASSERT_EQ(sh(exe + " customer add " + customer + " --home " + home.string()), 0) << slurp(dir / "cli.log");
-  json config{{"home", home.string()}, {"drop_dir", drop.string()}, {"output_dir", out.string()},
-              {"workers", 1},          {"poll_interval_ms", 100},   {"output_format", "off"}};
-  const fs::path sqlite_cfg = dir / "single.json", fleet_cfg = dir / "fleet.json";
-  std::ofstream(sqlite_cfg) << config.dump();
-  config["store"] = {{"postgres", conninfo}};
-  std::ofstream(fleet_cfg) << config.dump();
+    ASSERT_EQ(sh(exe + " customer add " + customer + " --home " + home.string()), 0) << cli_log();
+  const fs::path sqlite_cfg = write_config("single.json", json::object());
+  const fs::path fleet_cfg = write_config("fleet.json", {{"store", {{"postgres", conninfo}}}});
   const std::string part = mm::test::shared_mesh("abc7.stl");
   for (const char* customer : {"alpha", "beta"})
     ASSERT_EQ(sh(exe + " submit protect --config " + sqlite_cfg.string() + " --customer " + customer + " " + part), 0);
-  ASSERT_EQ(sh(exe + " run --until-empty --no-drops --config " + sqlite_cfg.string()), 0) << slurp(dir / "cli.log");
+  ASSERT_EQ(sh(exe + " run --until-empty --no-drops --config " + sqlite_cfg.string()), 0) << cli_log();
   auto single = mm::store::open_home(mm::store::resolve_home(home.string()), false);
-  fs::path leaked;
-  const auto beta = single->find_customer("beta");
-  for (const auto& c : single->list_copies()) {
-    if (c.customer_id != beta->id) continue;
-    const json outputs = json::parse(c.outputs_json);  // outlives the loop over its files
-    for (const auto& f : outputs["files"])
-      if (f["role"] == "decoded") leaked = f["path"].get<std::string>();
-  }
+  const fs::path leaked = decoded_copy(*single, "beta");
   ASSERT_FALSE(leaked.empty());
   ASSERT_EQ(sh(exe + " submit detect --config " + sqlite_cfg.string() + " " + leaked.string()), 0);
-  ASSERT_EQ(sh(exe + " run --until-empty --no-drops --config " + sqlite_cfg.string()), 0) << slurp(dir / "cli.log");
+  ASSERT_EQ(sh(exe + " run --until-empty --no-drops --config " + sqlite_cfg.string()), 0) << cli_log();
   const auto before = single->list_detections();
   ASSERT_EQ(before.size(), 1u);
   ASSERT_EQ(before[0].verdict, "attributed");
   const auto jobs_before = single->list_jobs({}).size();
   single.reset();
 
-  ASSERT_EQ(sh(exe + " store migrate --to '" + conninfo + "' --home " + home.string()), 0) << slurp(dir / "cli.log");
+  ASSERT_EQ(sh(exe + " store migrate --to '" + conninfo + "' --home " + home.string()), 0) << cli_log();
   EXPECT_NE(sh(exe + " store migrate --to '" + conninfo + "' --home " + home.string()), 0)
       << "a second move into a database that holds the first is refused";
-  mm::store::StoreOptions o;
-  o.blob_dir = (home / "blobs").string();
-  auto fleet = mm::store::open_postgres_store(conninfo, o);
+  auto fleet = fleet_store();
   ASSERT_EQ(fleet->list_detections().size(), 1u);
   EXPECT_EQ(fleet->list_detections()[0].id, before[0].id);
   EXPECT_EQ(fleet->list_copies().size(), 2u);
@@ -183,7 +179,7 @@ TEST(Fleet, AStoreMovedFromSqliteIntoPostgresTracesAnOldLeakTheSame) {
   const fs::path again = dir / "leak-on-the-fleet.off";
   fs::copy_file(leaked, again);
   ASSERT_EQ(sh(exe + " submit detect --config " + fleet_cfg.string() + " " + again.string()), 0);
-  ASSERT_EQ(sh(exe + " run --until-empty --no-drops --config " + fleet_cfg.string()), 0) << slurp(dir / "cli.log");
+  ASSERT_EQ(sh(exe + " run --until-empty --no-drops --config " + fleet_cfg.string()), 0) << cli_log();
   const auto after = fleet->list_detections();
   ASSERT_EQ(after.size(), 2u);
   EXPECT_GT(after[0].id, before[0].id) << "new ids continue after the moved ones";
@@ -192,34 +188,15 @@ TEST(Fleet, AStoreMovedFromSqliteIntoPostgresTracesAnOldLeakTheSame) {
   EXPECT_EQ(after[0].copy_id, before[0].copy_id);
   ASSERT_TRUE(after[0].p_value && before[0].p_value);
   EXPECT_EQ(*after[0].p_value, *before[0].p_value) << "the same numbers, bit for bit";
-  EXPECT_EQ(slurp(dir / "cli.log").find(password), std::string::npos);
-  if (!HasFailure()) fs::remove_all(dir);
+  EXPECT_EQ(cli_log().find(password), std::string::npos);
 }
 
 // meshmarkd nodes on one database: one leads; killed, it is replaced within one lease (three
 // heartbeats); a node stopped cleanly leaves the fleet. `meshmark fleet status` shows it all.
-TEST(Fleet, AKilledLeaderIsReplacedWithinOneLease) {
-  MM_REQUIRE_POSTGRES();
-  mm::test::PostgresServer server;
-  {
-    mm::store::pg::Connection admin(server.conninfo());
-    admin.exec("CREATE DATABASE leaders");
-  }
-  const std::string conninfo = server.conninfo("leaders");
-  const fs::path dir = fs::temp_directory_path() / ("mm-leaders-" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  const fs::path home = dir / "home", drop = dir / "drop", out = dir / "out";
-  fs::create_directories(drop);
-  fs::create_directories(out);
-  ::unsetenv("MESHMARK_MASTER_KEY");
-  const std::string exe = MESHMARK_EXE;
-  auto sh = [&](const std::string& cmd) { return std::system((cmd + " >>" + (dir / "cli.log").string() + " 2>&1").c_str()); };
-  ASSERT_EQ(sh("MESHMARK_STORE='" + conninfo + "' " + exe + " init --home " + home.string()), 0) << slurp(dir / "cli.log");
-  const fs::path cfg = dir / "meshmarkd.json";
-  std::ofstream(cfg) << json{{"home", home.string()},  {"drop_dir", drop.string()}, {"output_dir", out.string()},
-                             {"workers", 1},           {"heartbeat_seconds", 1},     {"poll_interval_ms", 100},
-                             {"log_level", "info"},    {"store", {{"postgres", conninfo}}}}
-                            .dump();
+TEST_F(Fleet, AKilledLeaderIsReplacedWithinOneLease) {
+  ASSERT_EQ(sh("MESHMARK_STORE='" + conninfo + "' " + exe + " init --home " + home.string()), 0) << cli_log();
+  const fs::path cfg = write_config("meshmarkd.json", {{"heartbeat_seconds", 1}, {"log_level", "info"},
+                                                       {"store", {{"postgres", conninfo}}}});
   auto start = [&](const std::string& log) {
     const pid_t pid = ::fork();
     if (pid == 0) {
@@ -285,7 +262,6 @@ TEST(Fleet, AKilledLeaderIsReplacedWithinOneLease) {
   EXPECT_EQ(after["nodes"][0]["name"], first);
   EXPECT_FALSE(after["nodes"][0]["leader"].get<bool>());
   EXPECT_NE(slurp(dir / "b.log").find("is now the leader"), std::string::npos) << slurp(dir / "b.log");
-  if (!HasFailure()) fs::remove_all(dir);
 }
 
 }  // namespace
