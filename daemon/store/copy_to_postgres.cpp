@@ -2,7 +2,9 @@
 
 #include <sqlite3.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <iterator>
 #include <memory>
 
 #include "store/pg_db.h"
@@ -18,6 +20,9 @@ constexpr const char* kTables[] = {"customers",  "customer_keys", "master_key_ch
                                    "polyhedra",  "jobs",          "issued_copies",    "detections",
                                    "audit_log",  "api_tokens",    "job_counters",     "job_events",
                                    "event_cursors"};
+// Not moved: the migrations' own record, and the nodes of the machine the store leaves (runtime
+// state; the fleet's nodes register themselves).
+constexpr const char* kNotMoved[] = {"schema_version", "nodes", "leader"};
 // Tables whose id column PostgreSQL generates: its sequence continues after the copied ids.
 constexpr const char* kIdentity[] = {"customers",  "assets",    "polyhedra",  "jobs",      "issued_copies",
                                      "detections", "audit_log", "api_tokens", "job_events"};
@@ -58,6 +63,20 @@ std::vector<CopiedTable> copy_sqlite_to_postgres(const std::string& sqlite_path,
     throw StoreError("cannot move " + sqlite_path + " (schema version " + std::to_string(sqlite_version) +
                      ") into PostgreSQL (schema version " + std::to_string(pg_version) +
                      "): open it with this meshmark first, which migrates it");
+  // A table neither moved nor named as not moved (a later migration's) stops the move rather
+  // than being left behind.
+  {
+    sql::Stmt t(db, "SELECT name FROM sqlite_master WHERE type = 'table' AND name NOT LIKE 'sqlite_%'");
+    while (t.step()) {
+      const std::string name = t.text(0);
+      const auto listed = [&name](const auto& list) {
+        return std::find(std::begin(list), std::end(list), name) != std::end(list);
+      };
+      if (!listed(kTables) && !listed(kNotMoved))
+        throw StoreError("cannot move " + sqlite_path + ": its table " + name + " is not one this meshmark knows how "
+                         "to move");
+    }
+  }
   std::vector<CopiedTable> out;
   sql::Tx snapshot(db, false);  // one snapshot of the SQLite store, even while a daemon writes to it
   pg::in_transaction(pgc, [&] {

@@ -22,6 +22,7 @@
 #include "store/home.h"
 #include "store/pg_db.h"
 #include "store/pg_store.h"
+#include "store/sqlite_db.h"
 
 namespace {
 
@@ -166,6 +167,15 @@ TEST_F(Fleet, AStoreMovedFromSqliteIntoPostgresTracesAnOldLeakTheSame) {
   const auto jobs_before = single->list_jobs({}).size();
   single.reset();
 
+  {
+    // A table the move does not know (a later migration's) stops it before anything is written.
+    mm::store::sql::Db db((home / "meshmark.db").string(), 1000);
+    db.exec("CREATE TABLE later_feature (x INTEGER)", "adding a table");
+  }
+  EXPECT_NE(sh(exe + " store migrate --to '" + conninfo + "' --home " + home.string()), 0);
+  EXPECT_NE(cli_log().find("its table later_feature is not one"), std::string::npos) << cli_log();
+  EXPECT_EQ(fleet_store()->list_customers().size(), 0u);
+  mm::store::sql::Db((home / "meshmark.db").string(), 1000).exec("DROP TABLE later_feature", "dropping it");
   ASSERT_EQ(sh(exe + " store migrate --to '" + conninfo + "' --home " + home.string()), 0) << cli_log();
   EXPECT_NE(sh(exe + " store migrate --to '" + conninfo + "' --home " + home.string()), 0)
       << "a second move into a database that holds the first is refused";
