@@ -703,12 +703,7 @@ class PgStore final : public Store {
   }
 
  private:
-  const keys::SecretKey& need_master() const {
-    if (!opt_.master_key)
-      throw keys::KeyError("no master key loaded: set MESHMARK_MASTER_KEY or create the home's "
-                           "master.key (meshmark init)");
-    return *opt_.master_key;
-  }
+  const keys::SecretKey& need_master() const { return rules::need_master(opt_.master_key); }
 
   void fault(const char* point) {
     if (opt_.fault_injection) opt_.fault_injection(point);
@@ -717,10 +712,7 @@ class PgStore final : public Store {
   void notify_job() { c_.exec("NOTIFY mm_jobs", {}, "waking idle nodes"); }
 
   LeaseLost lease_lost(std::int64_t job_id, const std::string& worker_id) {
-    const auto j = job_by_id(job_id);
-    const std::string state = j ? to_string(j->state) : "missing";
-    return LeaseLost("job " + std::to_string(job_id) + " is no longer held by worker " + clip(worker_id, 80) +
-                     " (state " + state + (j && j->state == JobState::running ? ", worker " + j->worker_id : "") + ")");
+    return lease_lost_error(job_id, worker_id, job_by_id(job_id));
   }
 
   // As SqliteStore::check_master_key: a wrong key is refused before anything is sealed with it.

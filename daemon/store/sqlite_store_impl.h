@@ -226,12 +226,7 @@ class SqliteStore final : public Store {
     return (slash == std::string::npos ? std::string(".") : o.db_path.substr(0, slash)) + "/blobs";
   }
 
-  const keys::SecretKey& need_master() const {
-    if (!opt_.master_key)
-      throw keys::KeyError("no master key loaded: set MESHMARK_MASTER_KEY or create the home's "
-                           "master.key (meshmark init)");
-    return *opt_.master_key;
-  }
+  const keys::SecretKey& need_master() const { return rules::need_master(opt_.master_key); }
 
   // Commits inside its scope are not fsynced (synchronous=NORMAL): for claims and heartbeats,
   // whose loss in a power cut only makes a job claimable again. The next FULL commit (a
@@ -255,10 +250,7 @@ class SqliteStore final : public Store {
   CompleteResult complete_in_tx(std::int64_t job_id, const std::string& worker_id, const JobRecords& r);
 
   LeaseLost lease_lost(std::int64_t job_id, const std::string& worker_id) {
-    auto j = job_by_id(job_id);
-    std::string state = j ? to_string(j->state) : "missing";
-    return LeaseLost("job " + std::to_string(job_id) + " is no longer held by worker " +
-                     clip(worker_id, 80) + " (state " + state + (j && j->state == JobState::running ? ", worker " + j->worker_id : "") + ")");
+    return lease_lost_error(job_id, worker_id, job_by_id(job_id));
   }
 
   Millis backoff(int attempt) { return backoff_delay(opt_.backoff, attempt, rng_); }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <regex>
@@ -84,6 +85,23 @@ constexpr const char* kListNodes =
     "CASE WHEN l.node = n.name AND l.until >= $1 THEN l.until ELSE 0 END "
     "FROM nodes n LEFT JOIN leader l ON l.id = 1 ORDER BY n.name";
 constexpr Millis kForgetNodeAfter = Millis{24} * 3600 * 1000;
+
+// The master key a key operation needs; KeyError saying how to provide it when none is loaded.
+inline const keys::SecretKey& need_master(const std::optional<keys::SecretKey>& master) {
+  if (!master)
+    throw keys::KeyError("no master key loaded: set MESHMARK_MASTER_KEY or create the home's "
+                         "master.key (meshmark init)");
+  return *master;
+}
+
+// The refusal of a heartbeat, completion, failure or release by a worker that no longer holds
+// the job; `job` as the store has it now (nullopt: no such job).
+inline LeaseLost lease_lost_error(std::int64_t job_id, const std::string& worker_id, const std::optional<Job>& job) {
+  const std::string state = job ? to_string(job->state) : "missing";
+  return LeaseLost("job " + std::to_string(job_id) + " is no longer held by worker " + clip(worker_id, 80) +
+                   " (state " + state + (job && job->state == JobState::running ? ", worker " + job->worker_id : "") +
+                   ")");
+}
 
 // Delay before the next attempt after `attempt` failures: base doubling per attempt, capped, plus
 // jitter.

@@ -2,7 +2,7 @@
 // normal n_i whose position is row i of R x (R: samples x points, x: points x 3) contributes
 // n_i . (R x)_i; the normal equations' 3 x 3 blocks are R^T diag(n_a n_b) R for the pairs of
 // normal components (a, b), and forming those directly costs far less than the products of the
-// stacked m x 3k system (the surface fit of a remeshed suspect: 270 ms of its 350 ms a round).
+// stacked m x 3k system.
 #pragma once
 #include <Eigen/Sparse>
 #include <array>

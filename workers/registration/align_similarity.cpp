@@ -189,7 +189,7 @@ IcpResult icp_rigid_point_to_plane(const Points& moving, const ClosestOnSurface&
     r.rms = rms;
     if (it == o.iterations || !(rms > 0)) break;
     // Settled: near its minimum the pairs' changes move the trimmed RMS up and down by about 1e-7
-    // of it round after round (a 64k-vertex remesh: 35 rounds of that after 5 that mattered).
+    // of it round after round, so a relative tolerance finer than kSettled is never met.
     if (std::isfinite(previous) && previous - rms <= std::max(o.tolerance, kSettled) * previous) {
       if (rms > previous) r.transform = before, r.rms = previous;  // the last round's step was no gain
       break;

@@ -90,8 +90,8 @@ using ClosestOnSurface = std::function<SurfacePoint(const Eigen::Vector3d& q, Ei
 
 // Rigid ICP (the starting transform's scale kept) minimising point-to-plane distances, with the
 // rotation linearised each round (Chen and Medioni 1992): pairs may slide along the surface, so
-// it settles in a few rounds where point-to-point ICP creeps for tens (a 64k-vertex remesh: not
-// settled after 40). `rms` is the trimmed RMS closest-point distance, as icp_similarity's.
+// it settles in a few rounds where point-to-point ICP creeps for tens. `rms` is the trimmed RMS
+// closest-point distance, as icp_similarity's.
 IcpResult icp_rigid_point_to_plane(const Points& moving, const ClosestOnSurface& closest, const Similarity& start,
                                    const IcpOptions& options = {});
 

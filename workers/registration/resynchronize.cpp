@@ -375,8 +375,7 @@ int exact_pairs(const Points& refined, double limit, const std::vector<int>& row
 // explained exactly, so the rounds stop once the last round's growth, kept up, could not get
 // there (a remesh tried as a piece gains a fraction of a percent a round; real pieces pair over
 // 90 % from the second round), or once the first solve explains fewer than half of them to
-// float precision (real pieces: 89-100 % of their pairs; rocker remeshed to 64k vertices: none,
-// and its two more rounds took 0.4 s).
+// float precision (real pieces: most of their pairs; a remesh: none).
 Resynchronized from_matching(const ResyncContext::Impl& ctx, const Hypothesis& h, const Points& suspect,
                              Matching m, int rounds, const EdgesOfBoth* edges = nullptr, int need = 0) {
   const LevelData& level = *h.level;

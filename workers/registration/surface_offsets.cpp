@@ -45,8 +45,7 @@ SurfaceOffsets offsets_from(const ResyncContext& context, const Mesh& suspect, c
   }
   SurfaceOffsets out;
   const int m = static_cast<int>(offsets.size());
-  // Each row is the barycentric mix of three refined vertices' rows of S: W S, one sparse product
-  // (forming it from S's entries as triplets took twice as long as the closest points).
+  // Each row is the barycentric mix of three refined vertices' rows of S: W S, one sparse product.
   SparseOperator W(m, S.rows());
   W.setFromTriplets(t.begin(), t.end());
   out.rows = W * S;
