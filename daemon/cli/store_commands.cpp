@@ -464,7 +464,7 @@ void add_store_migrate(CLI::App& app) {
     const auto home = store::resolve_home(c->home);
     if (::access(home.db.c_str(), F_OK) != 0)
       throw CommandFailed(1, "no SQLite store at " + home.db + " to move (run: meshmark init --home " + home.root + ")");
-    const auto tables = store::copy_sqlite_to_postgres(home.db, *to);
+    const auto tables = store::copy_sqlite_to_postgres(home.db, home.blobs, *to);
     if (c->json) {
       json j = json::object();
       for (const auto& t : tables) j[t.table] = t.rows;

@@ -4,9 +4,12 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <iterator>
 #include <memory>
 
+#include "store/blob_store.h"
+#include "store/pg_blob_store.h"
 #include "store/pg_db.h"
 #include "store/sqlite_db.h"
 #include "support/hex.h"
@@ -47,9 +50,29 @@ pg::Param as_param(sqlite3_stmt* st, int c) {
   }
 }
 
+// Every blob file under the FsBlobStore root (not its tmp/), checked against its name on the way.
+std::int64_t copy_blobs(const std::string& blob_dir, pg::Connection& pgc) {
+  namespace fs = std::filesystem;
+  std::int64_t n = 0;
+  if (!fs::exists(blob_dir)) return 0;
+  const FsBlobStore blobs(blob_dir);
+  for (const auto& shard : fs::directory_iterator(blob_dir)) {
+    if (!shard.is_directory() || shard.path().filename() == "tmp") continue;
+    for (const auto& f : fs::directory_iterator(shard.path())) {
+      const std::string name = f.path().filename().string();
+      if (!is_sha256_hex(name)) continue;
+      const std::vector<std::uint8_t> bytes = blobs.get(name);  // BlobError if corrupted
+      pg::put_blob(pgc, bytes.data(), bytes.size());
+      ++n;
+    }
+  }
+  return n;
+}
+
 }  // namespace
 
-std::vector<CopiedTable> copy_sqlite_to_postgres(const std::string& sqlite_path, const std::string& conninfo) {
+std::vector<CopiedTable> copy_sqlite_to_postgres(const std::string& sqlite_path, const std::string& blob_dir,
+                                                 const std::string& conninfo) {
   sql::Db db(sqlite_path, 10000);
   pg::Connection pgc(conninfo);
   const int pg_version = pg::migrate(pgc);
@@ -111,6 +134,7 @@ std::vector<CopiedTable> copy_sqlite_to_postgres(const std::string& sqlite_path,
         throw StoreError("cannot read table " + std::string(table) + " of " + sqlite_path + ": " + sqlite3_errmsg(db.get()));
       out.push_back(t);
     }
+    out.push_back({"blobs", copy_blobs(blob_dir, pgc)});
     for (const char* table : kIdentity)
       pgc.exec(std::string("SELECT setval(pg_get_serial_sequence('") + table + "', 'id'), COALESCE(MAX(id), 0) + 1, "
                    "false) FROM " + table,

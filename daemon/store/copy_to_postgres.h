@@ -17,8 +17,10 @@ struct CopiedTable {
 
 // Copies the SQLite database at sqlite_path into the PostgreSQL database `conninfo` (its
 // migrations applied first). Refuses (StoreError, nothing written) when the two schema versions
-// differ or the PostgreSQL database already holds customers, assets or jobs. Blobs stay where
-// they are: the home's blobs/ folder serves both.
-std::vector<CopiedTable> copy_sqlite_to_postgres(const std::string& sqlite_path, const std::string& conninfo);
+// differ or the PostgreSQL database already holds customers, assets or jobs. The blobs of the
+// FsBlobStore at blob_dir move in the same transaction (each verified against its name), reported
+// as the table "blobs"; the folder is left as it was.
+std::vector<CopiedTable> copy_sqlite_to_postgres(const std::string& sqlite_path, const std::string& blob_dir,
+                                                 const std::string& conninfo);
 
 }  // namespace mm::store

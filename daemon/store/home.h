@@ -4,7 +4,7 @@
 //   <home>/master.key      master key, mode 0600 (unless MESHMARK_MASTER_KEY is set)
 // The home is --home, else $MESHMARK_HOME, else ./meshmark-home. A fleet's nodes keep their store
 // in PostgreSQL instead of meshmark.db: store_url (from $MESHMARK_STORE, or the daemon's config key
-// store.postgres) names it, and the home keeps the master key and the blobs, shared by the nodes.
+// store.postgres) names it (blobs included), and each node's home keeps the master key and its blob cache.
 #pragma once
 #include <memory>
 #include <string>

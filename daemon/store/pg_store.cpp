@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <mutex>
 
+#include "store/pg_blob_store.h"
 #include "store/pg_db.h"
 #include "store/store_rules.h"
 #include "support/hex.h"
@@ -129,7 +130,8 @@ std::string append_error(const std::string& at, const std::string& error) {
 
 class PgStore final : public Store {
  public:
-  PgStore(const std::string& conninfo, StoreOptions o) : opt_(std::move(o)), c_(conninfo), blobs_(opt_.blob_dir) {
+  PgStore(const std::string& conninfo, StoreOptions o)
+      : opt_(std::move(o)), c_(conninfo), blobs_(conninfo, opt_.blob_dir) {
     std::uint64_t seed = opt_.jitter_seed;
     if (seed == 0) seed = (static_cast<std::uint64_t>(randombytes_random()) << 32) | randombytes_random();
     rng_.seed(seed);
@@ -233,13 +235,12 @@ class PgStore final : public Store {
   }
 
   // ------------------------------------------------------------ assets and polyhedra
+  // The original's bytes and its row commit in one transaction.
   Asset put_asset_file(const std::string& path, const std::string& name) override {
-    const std::string h = blobs_.put_file(path);  // durable before any row points at it
-    return upsert_asset(h, blobs_.size(h), name);
+    return upsert_asset(name, [&] { return pg::put_blob_file(c_, path); });
   }
   Asset put_asset_bytes(const std::vector<std::uint8_t>& bytes, const std::string& name) override {
-    const std::string h = blobs_.put(bytes);
-    return upsert_asset(h, bytes.size(), name);
+    return upsert_asset(name, [&] { return pg::put_blob(c_, bytes.data(), bytes.size()); });
   }
 
   std::optional<Asset> get_asset(std::int64_t id) override {
@@ -758,13 +759,16 @@ class PgStore final : public Store {
         .i64(0, 0);
   }
 
-  Asset upsert_asset(const std::string& sha, std::uint64_t size, const std::string& name) {
+  template <class PutBlob>
+  Asset upsert_asset(const std::string& name, PutBlob put_blob) {
     std::lock_guard<std::mutex> l(m_);
     return in_transaction(c_, [&] {
+      const std::string sha = put_blob();
+      const std::int64_t size = c_.exec("SELECT size FROM blobs WHERE sha256 = $1", {p(sha)}).i64(0, 0);
       const Result ins = c_.exec(
           "INSERT INTO assets(sha256, size, name, format, created_at) VALUES($1, $2, $3, $4, $5) "
           "ON CONFLICT (sha256) DO NOTHING RETURNING id",
-          {p(sha), p(static_cast<std::int64_t>(size)), p(name), p(format_from_name(name)), p(now())}, "adding an asset");
+          {p(sha), p(size), p(name), p(format_from_name(name)), p(now())}, "adding an asset");
       const Asset a = read_asset(c_.exec(sel(kAssetCols, "FROM assets WHERE sha256 = $1"), {p(sha)}), 0);
       if (ins.rows() > 0)
         insert_audit({"store", "asset.add", "asset:" + std::to_string(a.id), json{{"sha256", sha}, {"name", name}}.dump()});
@@ -885,14 +889,14 @@ class PgStore final : public Store {
   StoreOptions opt_;
   std::mutex m_;
   Connection c_;
-  FsBlobStore blobs_;
+  PgBlobStore blobs_;
   std::mt19937_64 rng_;
 };
 
 }  // namespace
 
 std::unique_ptr<Store> open_postgres_store(const std::string& conninfo, StoreOptions options) {
-  if (options.blob_dir.empty()) throw StoreError("open PostgreSQL store: no blob folder given");
+  if (options.blob_dir.empty()) throw StoreError("open PostgreSQL store: no blob cache folder given");
   return std::make_unique<PgStore>(conninfo, std::move(options));
 }
 

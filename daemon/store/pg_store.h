@@ -9,7 +9,8 @@
 //    (wait_for_jobs); polling remains the fallback.
 // One connection per Store object (calls are serialized on it), in session mode: LISTEN and the
 // advisory locks do not survive a transaction-mode pooler such as PgBouncer's.
-// Blobs stay in the FsBlobStore at StoreOptions::blob_dir (a folder every node mounts).
+// Blobs live in the database (store/pg_blob_store.h); StoreOptions::blob_dir is this node's cache
+// of the blobs it hands to libraries as files (BlobStore::path).
 #pragma once
 #include <memory>
 #include <string>
@@ -20,7 +21,7 @@ namespace mm::store {
 
 // Connects (conninfo "postgresql://..." or "host=... dbname=..."), applies pending migrations
 // (schema/postgres/) and checks the master key as open_sqlite_store does. options.db_path is
-// ignored; options.blob_dir must be given. StoreError when it cannot connect, naming no password.
+// ignored; options.blob_dir (the node's blob cache) must be given. StoreError when it cannot connect, naming no password.
 std::unique_ptr<Store> open_postgres_store(const std::string& conninfo, StoreOptions options);
 
 // Blocks until a job is enqueued on the database behind `conninfo`'s store (a NOTIFY on mm_jobs)

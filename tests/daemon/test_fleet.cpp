@@ -179,7 +179,16 @@ TEST_F(Fleet, AStoreMovedFromSqliteIntoPostgresTracesAnOldLeakTheSame) {
   ASSERT_EQ(sh(exe + " store migrate --to '" + conninfo + "' --home " + home.string()), 0) << cli_log();
   EXPECT_NE(sh(exe + " store migrate --to '" + conninfo + "' --home " + home.string()), 0)
       << "a second move into a database that holds the first is refused";
+  // The blobs moved with the rows: the fleet no longer needs the machine's blobs/ folder.
+  std::size_t moved_blobs = 0;
+  for (const auto& shard : fs::directory_iterator(home / "blobs"))
+    if (shard.path().filename() != "tmp") moved_blobs += static_cast<std::size_t>(std::distance(fs::directory_iterator(shard), {}));
+  fs::rename(home / "blobs", dir / "blobs-of-the-single-machine");
   auto fleet = fleet_store();
+  ASSERT_GT(moved_blobs, 0u);
+  for (const auto& a : fleet->list_assets()) EXPECT_TRUE(fleet->blobs().contains(a.sha256)) << a.name;
+  EXPECT_EQ(mm::store::pg::Connection(conninfo).exec("SELECT COUNT(*) FROM blobs").i64(0, 0),
+            static_cast<std::int64_t>(moved_blobs));
   ASSERT_EQ(fleet->list_detections().size(), 1u);
   EXPECT_EQ(fleet->list_detections()[0].id, before[0].id);
   EXPECT_EQ(fleet->list_copies().size(), 2u);

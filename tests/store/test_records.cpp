@@ -1,9 +1,12 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <random>
+#include <thread>
 
 #include "store_backends.h"
 #include "store_test_util.h"
+#include "support/sha256.h"
 
 using namespace mm;
 using namespace mm::test;
@@ -185,6 +188,54 @@ TEST_P(Records, AssetsAreDeduplicatedByContent) {
   auto other = f.s->put_asset_bytes({9}, "b.obj");
   EXPECT_NE(other.id, f.asset.id);
   EXPECT_THROW(f.s->put_asset_file(f.dir / "missing.stl", "missing.stl"), store::BlobError);
+}
+
+// Blobs of several megabytes (several chunks on PostgreSQL) come back whole, as bytes and as a
+// file; a missing one is an error, never empty bytes; the same bytes put by many threads at once
+// are one blob.
+TEST_P(Records, BlobsComeBackWholeAsBytesAndAsFiles) {
+  Fixture f(GetParam());
+  std::mt19937 rng(11);
+  std::vector<std::uint8_t> data(3 * 1024 * 1024 + 17);
+  for (auto& b : data) b = static_cast<std::uint8_t>(rng());
+  const std::string src = f.dir / "big.bin";
+  std::ofstream(src, std::ios::binary).write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
+  const std::string h = f.s->blobs().put_file(src);
+  EXPECT_EQ(h, support::sha256_hex(data));
+  EXPECT_TRUE(f.s->blobs().contains(h));
+  EXPECT_EQ(f.s->blobs().size(h), data.size());
+  EXPECT_EQ(f.s->blobs().get(h), data);
+  std::ifstream file(f.s->blobs().path(h), std::ios::binary);
+  EXPECT_EQ(std::vector<std::uint8_t>(std::istreambuf_iterator<char>(file), {}), data);
+  if (GetParam() == Backend::postgres) {
+    EXPECT_EQ(f.stores.raw(f.dir, "SELECT COUNT(*) FROM blob_chunks WHERE sha256 = '" + h + "'")[0], "4");
+  }
+
+  const std::string absent(64, 'a');
+  EXPECT_FALSE(f.s->blobs().contains(absent));
+  EXPECT_THROW(f.s->blobs().get(absent), store::BlobError);
+  EXPECT_THROW(f.s->blobs().size(absent), store::BlobError);
+
+  std::vector<std::thread> threads;
+  std::vector<std::string> got(4);
+  for (int i = 0; i < 4; ++i) threads.emplace_back([&, i] { got[i] = f.s->blobs().put(std::string("shared bytes")); });
+  for (auto& t : threads) t.join();
+  for (const auto& g : got) EXPECT_EQ(g, got[0]);
+  EXPECT_EQ(f.s->blobs().get(got[0]), (std::vector<std::uint8_t>{'s', 'h', 'a', 'r', 'e', 'd', ' ', 'b', 'y', 't', 'e', 's'}));
+}
+
+// A blob whose stored bytes were changed is refused on read, naming the blob.
+TEST(PostgresBlobs, AChangedChunkIsRefusedOnRead) {
+  MM_REQUIRE_POSTGRES();
+  Fixture f(Backend::postgres);
+  const std::string h = f.s->blobs().put(std::string("original bytes"));
+  f.stores.raw(f.dir, "UPDATE blob_chunks SET data = '\\x00' WHERE sha256 = '" + h + "'");
+  try {
+    f.s->blobs().get(h);
+    FAIL() << "changed blob returned";
+  } catch (const store::BlobError& e) {
+    EXPECT_NE(std::string(e.what()).find(h), std::string::npos) << e.what();
+  }
 }
 
 TEST_P(Records, PolyhedraAreCachedPerAssetAndParameters) {
