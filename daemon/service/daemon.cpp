@@ -22,6 +22,7 @@
 #include "service/handlers.h"
 #include "support/atomic_file.h"
 #include "store/home.h"
+#include "store/pg_store.h"
 
 namespace mm::service {
 
@@ -102,18 +103,20 @@ void setup_logging(const Config& cfg) {
   spdlog::set_default_logger(logger);
 }
 
-std::unique_ptr<store::Store> open_store(const Config& cfg) {
+store::HomePaths home_of(const Config& cfg) {
   auto home = store::resolve_home(cfg.home);
   home.master_key = cfg.master_key_path();
   if (!cfg.store_postgres.empty()) home.store_url = cfg.store_postgres;
-  return store::open_home(home, true);
+  return home;
 }
+
+std::unique_ptr<store::Store> open_store(const Config& cfg) { return store::open_home(home_of(cfg), true); }
 
 Daemon::Daemon(Config cfg) : cfg_(std::make_shared<const Config>(std::move(cfg))) {
   store_ = open_store(*cfg_);
 }
 
-Daemon::~Daemon() = default;
+Daemon::~Daemon() { stop_wakeups(); }
 
 std::shared_ptr<const Config> Daemon::config() const {
   std::lock_guard<std::mutex> l(cfg_m_);
@@ -232,6 +235,37 @@ void Daemon::check_inflight() {
   }
 }
 
+void Daemon::start_wakeups(const Config& cfg) {
+  const std::string url = home_of(cfg).store_url;
+  if (url.empty()) return;  // SQLite: enqueues on this machine notify the pool directly
+  const int retry_ms = std::min(cfg.poll_interval_ms, 1000);
+  wakeups_ = std::thread([this, url, retry_ms] {
+    std::unique_ptr<store::JobWakeups> w;
+    bool warned = false;
+    while (!wakeups_stop_) {
+      try {
+        if (!w) {
+          w = std::make_unique<store::JobWakeups>(url);
+          if (warned) spdlog::info("fleet: job wake-ups resumed");
+          warned = false;
+        }
+        if (w->wait(500)) pool_->notify();
+      } catch (const std::exception& e) {
+        // The database restarting: polling carries on meanwhile; listen again once it is back.
+        if (!warned) spdlog::warn("fleet: job wake-ups paused: {}", e.what());
+        warned = true;
+        w.reset();
+        std::this_thread::sleep_for(std::chrono::milliseconds(retry_ms));
+      }
+    }
+  });
+}
+
+void Daemon::stop_wakeups() {
+  wakeups_stop_ = true;
+  if (wakeups_.joinable()) wakeups_.join();
+}
+
 bool Daemon::beat_fleet(const Config& cfg) {
   const auto now = std::chrono::steady_clock::now();
   if (now < next_beat_) return leader_;
@@ -305,6 +339,7 @@ int Daemon::run() {
                cfg->drop_dir, cfg->output_dir, watcher_->inotify_active() ? "on" : "off", store_->schema_version(),
                reaped ? ", " + std::to_string(reaped) + " expired leases reaped" : "");
   pool_->start();
+  start_wakeups(*cfg);
   start_api();
   // Under systemd (Type=notify): ready once the workers and the API are up; the watchdog is fed
   // from this loop, so a main loop that hangs gets the daemon restarted.
@@ -352,6 +387,7 @@ int Daemon::run() {
   cfg = config();
   notify_systemd("STOPPING=1");
   if (http_) http_->stop();  // requests in progress finish; no new ones
+  stop_wakeups();
   pool_->stop_claiming();
   auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(cfg->shutdown_grace_seconds);
   bool drained = pool_->wait_idle(deadline);

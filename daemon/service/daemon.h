@@ -5,11 +5,13 @@
 // within shutdown_grace_seconds, else release them to the queue), SIGHUP reloads the config and
 // logs what changed. Dropped files are moved to done/ or failed/ when their job is final.
 #pragma once
+#include <atomic>
 #include <chrono>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <thread>
 
 #include "http/server.h"
 #include "service/api.h"
@@ -54,6 +56,10 @@ class Daemon {
   // This node's beat in the store's fleet (every heartbeat_seconds); true while it holds the
   // leader lease.
   bool beat_fleet(const Config& cfg);
+  // On PostgreSQL: a thread LISTENing for enqueues on any node, waking idle workers at once
+  // (polling every poll_interval_ms stays the fallback). Stopped by stop_wakeups().
+  void start_wakeups(const Config& cfg);
+  void stop_wakeups();
 
   mutable std::mutex cfg_m_;
   std::shared_ptr<const Config> cfg_;
@@ -68,6 +74,8 @@ class Daemon {
   std::string node_ = host_prefix();  // host:pid, the prefix of this daemon's worker ids
   bool leader_ = false;
   std::chrono::steady_clock::time_point next_beat_{};
+  std::thread wakeups_;
+  std::atomic<bool> wakeups_stop_{false};
 };
 
 }  // namespace mm::service

@@ -73,16 +73,44 @@ Result checked(pg_conn* c, pg_result* r, const std::string& what) {
 
 }  // namespace
 
+void Connection::reconnect(const std::string& what) {
+  if (in_transaction_)
+    throw PgError("PostgreSQL: " + (what.empty() ? std::string("a statement") : what) +
+                      ": the connection was lost inside a transaction: " + message_of(c_),
+                  "08006");
+  PQreset(c_);
+  if (PQstatus(c_) != CONNECTION_OK) throw PgError("PostgreSQL: cannot reconnect: " + message_of(c_), "08006");
+  exec("SET TIME ZONE 'UTC'", {}, "setting the session's time zone");
+  const std::vector<std::string> channels = std::move(channels_);
+  channels_.clear();
+  for (const auto& ch : channels) listen(ch);
+}
+
 Result Connection::exec(const std::string& sql, const std::vector<Param>& params, const std::string& what) {
+  if (PQstatus(c_) != CONNECTION_OK) reconnect(what);
   std::vector<const char*> values;
   values.reserve(params.size());
   for (const Param& p : params) values.push_back(p ? p->c_str() : nullptr);
-  return checked(c_, PQexecParams(c_, sql.c_str(), static_cast<int>(values.size()), nullptr, values.data(), nullptr,
-                                  nullptr, 0),
-                 what);
+  const auto run = [&] {
+    return checked(c_, PQexecParams(c_, sql.c_str(), static_cast<int>(values.size()), nullptr, values.data(), nullptr,
+                                    nullptr, 0),
+                   what);
+  };
+  try {
+    return run();
+  } catch (const PgError&) {
+    // A session the server ended is often noticed only by the statement that finds it gone. A
+    // BEGIN or a read changed nothing, so it runs again on a new session; a write outside a
+    // transaction is not repeated (it may have run).
+    const bool harmless = sql.rfind("BEGIN", 0) == 0 || sql.rfind("SELECT", 0) == 0 || sql.rfind("SET ", 0) == 0;
+    if (in_transaction_ || PQstatus(c_) == CONNECTION_OK || !harmless) throw;
+  }
+  reconnect(what);
+  return run();
 }
 
 void Connection::exec_script(const std::string& sql, const std::string& what) {
+  if (PQstatus(c_) != CONNECTION_OK) reconnect(what);
   // PQexec runs every statement of the string; the result is the last one's, an error stops it.
   checked(c_, PQexec(c_, sql.c_str()), what);
 }
@@ -93,12 +121,15 @@ void Connection::listen(const std::string& channel) {
   const std::string sql = std::string("LISTEN ") + quoted;
   PQfreemem(quoted);
   exec(sql, {}, "listening on " + channel);
+  channels_.push_back(channel);
 }
 
 std::optional<std::string> Connection::wait_notification(int timeout_ms) {
   const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+  if (PQstatus(c_) != CONNECTION_OK) reconnect("waiting for a notification");
   for (;;) {
-    PQconsumeInput(c_);
+    if (PQconsumeInput(c_) == 0 && PQstatus(c_) != CONNECTION_OK)
+      throw PgError("PostgreSQL: the connection was lost while waiting for a notification: " + message_of(c_), "08006");
     if (PGnotify* n = PQnotifies(c_)) {
       std::string channel = n->relname;
       PQfreemem(n);

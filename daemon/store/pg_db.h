@@ -51,7 +51,9 @@ class Connection {
   Connection(const Connection&) = delete;
   Connection& operator=(const Connection&) = delete;
 
-  // One statement, parameters as $1, $2, ... (text; the server converts them).
+  // One statement, parameters as $1, $2, ... (text; the server converts them). A connection the
+  // server dropped (a restart, a failover) is made again before a statement outside a
+  // transaction, its LISTENs renewed; inside one, the statement fails (the transaction is lost).
   Result exec(const std::string& sql, const std::vector<Param>& params = {}, const std::string& what = "");
   // Several statements without parameters, in one round trip (migrations).
   void exec_script(const std::string& sql, const std::string& what);
@@ -63,24 +65,34 @@ class Connection {
 
   bool ok() const;  // the connection is usable
 
+  // in_transaction's bookkeeping: a connection is not silently remade inside a transaction.
+  void set_in_transaction(bool open) { in_transaction_ = open; }
+
  private:
+  void reconnect(const std::string& what);
   pg_conn* c_;
+  bool in_transaction_ = false;
+  std::vector<std::string> channels_;
 };
 
 // Runs fn between BEGIN and COMMIT; rolls back and rethrows if fn throws.
 template <class F>
 auto in_transaction(Connection& c, F&& fn, const std::string& isolation = "READ COMMITTED") {
   c.exec("BEGIN ISOLATION LEVEL " + isolation, {}, "starting a transaction");
+  c.set_in_transaction(true);
   try {
     if constexpr (std::is_void_v<decltype(fn())>) {
       fn();
       c.exec("COMMIT", {}, "committing");
+      c.set_in_transaction(false);
     } else {
       auto r = fn();
       c.exec("COMMIT", {}, "committing");
+      c.set_in_transaction(false);
       return r;
     }
   } catch (...) {
+    c.set_in_transaction(false);
     if (c.ok()) {
       try {
         c.exec("ROLLBACK", {}, "rolling back");

@@ -90,7 +90,6 @@ class Fleet : public ::testing::Test {
   std::string conninfo;
   fs::path dir, home, drop, out;
 
- private:
   std::unique_ptr<mm::test::PostgresServer> server_;
 };
 
@@ -281,6 +280,66 @@ TEST_F(Fleet, AKilledLeaderIsReplacedWithinOneLease) {
   EXPECT_EQ(after["nodes"][0]["name"], first);
   EXPECT_FALSE(after["nodes"][0]["leader"].get<bool>());
   EXPECT_NE(slurp(dir / "b.log").find("is now the leader"), std::string::npos) << slurp(dir / "b.log");
+}
+
+// An idle node claims a job another process enqueued at once (LISTEN/NOTIFY), not at its next
+// poll (20 s here), and again after the database restarted under it.
+TEST_F(Fleet, AnIdleNodeWakesOnAnEnqueueAlsoAfterTheDatabaseRestarts) {
+  MM_REQUIRE_SHARED_MESHES();
+  ASSERT_EQ(sh("MESHMARK_STORE='" + conninfo + "' " + exe + " init --home " + home.string()), 0) << cli_log();
+  for (const char* customer : {"alpha", "beta"})
+    ASSERT_EQ(sh("MESHMARK_STORE='" + conninfo + "' " + exe + " customer add " + customer + " --home " + home.string()), 0);
+  const fs::path cfg = write_config("meshmarkd.json", {{"poll_interval_ms", 20000}, {"log_level", "info"},
+                                                       {"store", {{"postgres", conninfo}}}});
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    FILE* f = std::freopen((dir / "node.log").c_str(), "a", stderr);
+    (void)f;
+    ::execl(MESHMARKD_EXE, MESHMARKD_EXE, "--config", cfg.string().c_str(), static_cast<char*>(nullptr));
+    std::_Exit(127);
+  }
+  struct Reaper {
+    pid_t pid;
+    ~Reaper() {
+      if (::kill(pid, SIGKILL) == 0) ::waitpid(pid, nullptr, 0);
+    }
+  } reaper{pid};
+  auto wait_for_log = [&](const std::string& line, double seconds) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    while (std::chrono::steady_clock::now() < end) {
+      if (slurp(dir / "node.log").find(line) != std::string::npos) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return false;
+  };
+  auto st = fleet_store();
+  // Submits a protect job for `customer` and returns the seconds from its enqueue to its claim.
+  auto claimed_after = [&](const std::string& customer) {
+    EXPECT_EQ(sh(exe + " submit protect --config " + cfg.string() + " --customer " + customer + " " +
+                 mm::test::shared_mesh("chamfer-cube.off")),
+              0)
+        << cli_log();
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(15);
+    while (std::chrono::steady_clock::now() < end) {
+      for (const auto& j : st->list_jobs({}))
+        if (j.payload_json.find(customer) != std::string::npos && j.attempted_at)
+          return static_cast<double>(*j.attempted_at - j.created_at) / 1000;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return 1e9;
+  };
+  ASSERT_TRUE(wait_for_log("meshmarkd started", 20)) << slurp(dir / "node.log");
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the worker is idle, waiting
+  const double first = claimed_after("alpha");
+  EXPECT_LT(first, 5) << "woken by the enqueue, not by a poll 20 s later\n" << slurp(dir / "node.log");
+
+  server_->stop();
+  server_->start();
+  ASSERT_TRUE(wait_for_log("fleet: job wake-ups resumed", 20)) << slurp(dir / "node.log");
+  st = fleet_store();  // the test's own connection ended with the server
+  const double second = claimed_after("beta");
+  EXPECT_LT(second, 5) << "listening again after the restart\n" << slurp(dir / "node.log");
+  std::printf("  claimed %.2f s after the enqueue; after a restart of the database %.2f s\n", first, second);
 }
 
 }  // namespace

@@ -12,6 +12,8 @@
 #include "common/postgres_server.h"
 #include "store/migrations.h"
 #include "store/pg_db.h"
+#include "store/pg_store.h"
+#include "store_test_util.h"
 
 namespace {
 
@@ -184,6 +186,58 @@ TEST_F(Postgres, ANotificationWakesAListenerAndSilenceTimesOut) {
   later.join();
   EXPECT_EQ(got, std::optional<std::string>("meshmark_jobs"));
   EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(5)) << "woken, not timed out";
+}
+
+// A restart of the server (a failover, an upgrade) ends every session. The next statement outside
+// a transaction connects again, LISTENs included; a transaction cut by it fails whole, and the
+// one after it runs.
+TEST_F(Postgres, AConnectionOutlivesARestartOfTheServer) {
+  MM_REQUIRE_POSTGRES();
+  Connection c(conninfo());
+  c.listen("mm_jobs");
+  c.exec("CREATE TABLE t (x integer)");
+  mm::store::pg::in_transaction(c, [&] { c.exec("INSERT INTO t VALUES (1)"); });
+  server_->stop();
+  EXPECT_THROW(c.exec("SELECT 1"), PgError) << "the server is down";
+  server_->start();
+  EXPECT_EQ(c.exec("SELECT COUNT(*) FROM t").i64(0, 0), 1);
+  Connection sender(conninfo());
+  sender.exec("NOTIFY mm_jobs, 'protect'");
+  EXPECT_EQ(c.wait_notification(5000), std::optional<std::string>("mm_jobs")) << "listening again after the restart";
+
+  EXPECT_THROW(mm::store::pg::in_transaction(c,
+                                             [&] {
+                                               c.exec("INSERT INTO t VALUES (2)");
+                                               server_->stop();
+                                               server_->start();
+                                               c.exec("INSERT INTO t VALUES (3)");
+                                             }),
+               PgError);
+  mm::store::pg::in_transaction(c, [&] { c.exec("INSERT INTO t VALUES (4)"); });
+  EXPECT_EQ(c.exec("SELECT string_agg(x::text, ',' ORDER BY x) FROM t").text(0, 0), "1,4")
+      << "nothing of the cut transaction, and none of it outside a transaction";
+}
+
+// A store's job survives a restart between its claim and its completion (the lease is on the
+// database's clock, so it still holds), and its blobs are read again through new connections.
+TEST_F(Postgres, AStoreCompletesAJobClaimedBeforeARestart) {
+  MM_REQUIRE_POSTGRES();
+  mm::test::TempDir dir;
+  mm::store::StoreOptions o;
+  o.blob_dir = dir / "cache";
+  auto st = mm::store::open_postgres_store(conninfo(), o);
+  const std::string blob = st->blobs().put(std::string("part bytes"));
+  mm::store::JobSpec spec;
+  spec.kind = "noop";
+  st->enqueue(spec);
+  const auto job = st->claim("w1", 60000);
+  ASSERT_TRUE(job);
+  server_->stop();
+  server_->start();
+  st->heartbeat(job->id, "w1", 60000);
+  st->complete(job->id, "w1", {});
+  EXPECT_EQ(st->get_job(job->id)->state, mm::store::JobState::completed);
+  EXPECT_EQ(st->blobs().get(blob).size(), 10u);
 }
 
 }  // namespace
