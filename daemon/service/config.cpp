@@ -146,7 +146,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
   Config cfg;
   cfg.source = source;
   c.known(j, "", {"home", "drop_dir", "output_dir", "master_key_file", "workers", "lease_seconds",
-                  "heartbeat_seconds", "max_attempts", "shutdown_grace_seconds", "poll_interval_ms",
+                  "heartbeat_seconds", "max_attempts", "shutdown_grace_seconds", "job_retention_days", "poll_interval_ms",
                   "settle_ms", "use_inotify", "input_roots", "max_input_bytes", "max_triangles", "output_format", "watermark", "compression", "detect", "evidence", "cad", "http", "webhooks", "store", "log_level",
                   "log_file", "$comment"});
   c.path(j, "home", cfg.home, true);
@@ -174,6 +174,7 @@ Config parse_config(const std::string& text, const std::string& source, const st
   c.integer(j, "", "heartbeat_seconds", cfg.heartbeat_seconds, 1, 3600);
   c.integer(j, "", "max_attempts", cfg.max_attempts, 1, 100);
   c.integer(j, "", "shutdown_grace_seconds", cfg.shutdown_grace_seconds, 0, 3600);
+  c.integer(j, "", "job_retention_days", cfg.job_retention_days, 0, 36500);
   c.integer(j, "", "poll_interval_ms", cfg.poll_interval_ms, 20, 600000);
   c.integer(j, "", "settle_ms", cfg.settle_ms, 0, 600000);
   c.integer64(j, "", "max_input_bytes", cfg.max_input_bytes, 0, 1ll << 40);
@@ -393,6 +394,7 @@ std::map<std::string, std::string> flatten(const Config& c) {
           {"heartbeat_seconds", std::to_string(c.heartbeat_seconds)},
           {"max_attempts", std::to_string(c.max_attempts)},
           {"shutdown_grace_seconds", std::to_string(c.shutdown_grace_seconds)},
+          {"job_retention_days", std::to_string(c.job_retention_days)},
           {"poll_interval_ms", std::to_string(c.poll_interval_ms)},
           {"settle_ms", std::to_string(c.settle_ms)},
           {"use_inotify", c.use_inotify ? "true" : "false"},

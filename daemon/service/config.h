@@ -42,6 +42,9 @@ struct Config {
   int heartbeat_seconds = 30;
   int max_attempts = 5;
   int shutdown_grace_seconds = 30;
+  // Finished jobs no copy or detection points at are deleted this long after they finished, by
+  // the leader (0: kept forever).
+  int job_retention_days = 14;
   // Drop folders.
   int poll_interval_ms = 1000;
   int settle_ms = 2000;  // polling fallback: a file unchanged this long counts as complete

@@ -290,6 +290,25 @@ void Daemon::deliver_webhooks(const Config& cfg) {
   }
 }
 
+void Daemon::prune_jobs(const Config& cfg) {
+  const auto now = std::chrono::steady_clock::now();
+  if (cfg.job_retention_days == 0 || now < next_prune_) return;
+  next_prune_ = now + std::chrono::minutes(1);
+  try {
+    const store::Millis before = store_->now() - store::Millis(cfg.job_retention_days) * 24 * 3600 * 1000;
+    // Batches of 1,000, each its own short transaction, so claims never wait long behind it.
+    int total = 0;
+    for (int batch = 0; batch < 10; ++batch) {
+      const int n = store_->prune_jobs(before, 1000);
+      total += n;
+      if (n < 1000) break;
+    }
+    if (total > 0) spdlog::info("pruned {} finished job(s) older than {} days", total, cfg.job_retention_days);
+  } catch (const std::exception& e) {
+    spdlog::warn("pruning finished jobs: {}", e.what());
+  }
+}
+
 void Daemon::start_api() {
   auto cfg = config();
   if (cfg->http_listen.empty()) return;
@@ -376,7 +395,10 @@ int Daemon::run() {
     check_inflight();
     // The leader alone turns job events into webhook deliveries; the others would only queue
     // behind its lock on the event cursor.
-    if (beat_fleet(*cfg)) deliver_webhooks(*cfg);
+    if (beat_fleet(*cfg)) {
+      deliver_webhooks(*cfg);
+      prune_jobs(*cfg);
+    }
   }
   try {
     store_->leave_fleet(node_);

@@ -59,6 +59,8 @@ class Daemon {
   // On PostgreSQL: a thread LISTENing for enqueues on any node, waking idle workers at once
   // (polling every poll_interval_ms stays the fallback). Stopped by stop_wakeups().
   void start_wakeups(const Config& cfg);
+  // The leader's pruning of finished jobs past job_retention_days, at most once a minute.
+  void prune_jobs(const Config& cfg);
   void stop_wakeups();
 
   mutable std::mutex cfg_m_;
@@ -74,6 +76,7 @@ class Daemon {
   std::string node_ = host_prefix();  // host:pid, the prefix of this daemon's worker ids
   bool leader_ = false;
   std::chrono::steady_clock::time_point next_beat_{};
+  std::chrono::steady_clock::time_point next_prune_{};
   std::thread wakeups_;
   std::atomic<bool> wakeups_stop_{false};
 };

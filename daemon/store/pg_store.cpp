@@ -564,6 +564,14 @@ class PgStore final : public Store {
     return in_transaction(c_, [&] { return reap(now()); });
   }
 
+  int prune_jobs(Millis finished_before, int limit) override {
+    std::lock_guard<std::mutex> l(m_);
+    return in_transaction(c_, [&] {
+      return static_cast<int>(
+          c_.exec(kPruneJobs, {p(finished_before), p(std::int64_t{limit})}, "pruning finished jobs").affected());
+    });
+  }
+
   std::optional<Job> get_job(std::int64_t id) override {
     std::lock_guard<std::mutex> l(m_);
     return job_by_id(id);

@@ -190,6 +190,16 @@ int SqliteStore::reap_expired_leases() {
   return n;
 }
 
+int SqliteStore::prune_jobs(Millis finished_before, int limit) {
+  std::lock_guard<std::mutex> l(m_);
+  Tx tx(db_);
+  Stmt d(db_, rules::kPruneJobs);
+  d.bind(1, static_cast<std::int64_t>(finished_before)).bind(2, limit).run();
+  const int n = d.changes();
+  tx.commit();
+  return n;
+}
+
 std::optional<Job> SqliteStore::get_job(std::int64_t id) {
   std::lock_guard<std::mutex> l(m_);
   return job_by_id(id);

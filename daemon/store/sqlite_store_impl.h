@@ -204,6 +204,7 @@ class SqliteStore final : public Store {
   bool retry(std::int64_t job_id, const std::string& actor) override;
 
   int reap_expired_leases() override;
+  int prune_jobs(Millis finished_before, int limit) override;
 
   std::optional<Job> get_job(std::int64_t id) override;
 

@@ -404,6 +404,10 @@ class Store {
   virtual std::optional<Job> get_job(std::int64_t id) = 0;
   virtual std::vector<Job> list_jobs(const JobFilter& f = {}) = 0;
   virtual QueueCounts counts() = 0;
+  // Deletes up to `limit` finished jobs (completed, discarded, cancelled) that finished before
+  // `finished_before` and that no issued copy or detection points at (those keep their job, the
+  // record of how they were made), oldest first, in one transaction. Returns how many.
+  virtual int prune_jobs(Millis finished_before, int limit) = 0;
   // Earliest scheduled_at of a retryable job (to sleep until), if any.
   virtual std::optional<Millis> next_scheduled() = 0;
 

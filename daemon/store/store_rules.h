@@ -103,6 +103,12 @@ inline LeaseLost lease_lost_error(std::int64_t job_id, const std::string& worker
                    ")");
 }
 
+// Store::prune_jobs in both dialects ($1 finished before, $2 the batch; SQLite binds $N by position).
+constexpr const char* kPruneJobs =
+    "DELETE FROM jobs WHERE id IN (SELECT j.id FROM jobs j WHERE j.state IN ('completed', 'discarded', 'cancelled') "
+    "AND j.finished_at < $1 AND NOT EXISTS (SELECT 1 FROM issued_copies c WHERE c.job_id = j.id) "
+    "AND NOT EXISTS (SELECT 1 FROM detections d WHERE d.job_id = j.id) ORDER BY j.finished_at, j.id LIMIT $2)";
+
 // Delay before the next attempt after `attempt` failures: base doubling per attempt, capped, plus
 // jitter.
 inline Millis backoff_delay(const BackoffPolicy& b, int attempt, std::mt19937_64& rng) {

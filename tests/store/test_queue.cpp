@@ -525,3 +525,61 @@ TEST_P(Queue, OneNodeLeadsUntilItsLeaseRunsOutOrItLeaves) {
   ASSERT_EQ(nodes.size(), 1u);
   EXPECT_EQ(nodes[0].name, "host-a:11");
 }
+
+// Finished jobs past the retention go, oldest first and in batches; a job that issued a copy or
+// recorded a detection stays with its records, as do running and recent ones.
+TEST_P(Queue, PruningDeletesOldFinishedJobsThatNoRecordPointsAt) {
+  TempDir dir;
+  StepClock clock;
+  auto s = open_store(dir, options(dir, &clock));
+  const auto acme = s->add_customer("acme");
+  const auto asset = s->put_asset_bytes({1, 2, 3}, "part.stl");
+  auto finish = [&](const std::string& idem, const store::JobRecords& r) {
+    const auto id = s->enqueue(spec("noop", 0, 5, idem)).job.id;
+    EXPECT_EQ(s->claim("w", 60000)->id, id);
+    s->complete(id, "w", r);
+    clock.advance(10);
+    return id;
+  };
+  store::JobRecords with_copy;
+  store::NewCopy c;
+  c.asset_id = asset.id;
+  c.customer_id = acme.id;
+  c.key_version = 1;
+  c.idempotency_key = "copy";
+  c.nonce = std::vector<std::uint8_t>(24, 1);
+  c.payload_hex = "00";
+  with_copy.copies = {c};
+  store::JobRecords with_detection;
+  store::NewDetection d;
+  d.suspect_sha256 = asset.sha256;
+  d.verdict = "no_match";
+  with_detection.detections = {d};
+
+  const auto old1 = finish("old1", {});
+  const auto issued = finish("issued", with_copy);
+  const auto detected = finish("detected", with_detection);
+  const auto old2 = finish("old2", {});
+  const auto discarded = s->enqueue(spec("noop", 0, 1, "discarded")).job.id;
+  ASSERT_EQ(s->claim("w", 60000)->id, discarded);
+  EXPECT_EQ(s->fail(discarded, "w", "bad input", false), JobState::discarded);
+  const auto cancelled = s->enqueue(spec("noop", 0, 5, "cancelled")).job.id;
+  EXPECT_TRUE(s->cancel(cancelled));
+  const auto running = s->enqueue(spec("noop", 0, 5, "running")).job.id;
+  ASSERT_EQ(s->claim("w", 60000)->id, running);
+  clock.advance(1000);
+  const store::Millis cutoff = clock.now();
+  clock.advance(1000);
+  const auto recent = finish("recent", {});
+  const auto waiting = s->enqueue(spec("noop", 0, 5, "waiting")).job.id;
+
+  EXPECT_EQ(s->prune_jobs(cutoff, 1), 1);
+  EXPECT_FALSE(s->get_job(old1)) << "the oldest goes first";
+  EXPECT_TRUE(s->get_job(old2));
+  EXPECT_EQ(s->prune_jobs(cutoff, 100), 3);
+  for (auto id : {old2, discarded, cancelled}) EXPECT_FALSE(s->get_job(id)) << id;
+  for (auto id : {issued, detected, running, waiting, recent}) EXPECT_TRUE(s->get_job(id)) << id;
+  EXPECT_EQ(s->prune_jobs(cutoff, 100), 0);
+  EXPECT_EQ(s->list_copies().at(0).job_id, issued);
+  EXPECT_EQ(s->detection_of_job(detected)->verdict, "no_match");
+}
