@@ -21,7 +21,8 @@ inline bool postgres_available() { return std::filesystem::exists(std::string(kP
 
 class PostgresServer {
  public:
-  PostgresServer() {
+  // fsync off by default: tests need no durability; a benchmark asks for it.
+  explicit PostgresServer(bool fsync = false) : fsync_(fsync) {
     static std::atomic<int> serial{0};
     dir_ = std::filesystem::temp_directory_path() /
            ("mm-pg-" + std::to_string(::getpid()) + "-" + std::to_string(serial++));
@@ -51,7 +52,8 @@ class PostgresServer {
   }
   void start() {
     run(std::string(kPostgresBin) + "/pg_ctl -D " + data() + " -l " + (dir_ / "server.log").string() +
-        " -w -o \"-k " + dir_.string() + " -c listen_addresses='' -p 5432 -c fsync=off\" start");
+        " -w -o \"-k " + dir_.string() + " -c listen_addresses='' -p 5432 -c fsync=" +
+        (fsync_ ? "on" : "off") + "\" start");
     running_ = true;
   }
   // Fast shutdown: the server's sessions are ended, as when it is restarted under load.
@@ -77,6 +79,7 @@ class PostgresServer {
   std::filesystem::path dir_;
   std::string as_;
   bool running_ = false;
+  bool fsync_ = false;
 };
 
 }  // namespace mm::test
