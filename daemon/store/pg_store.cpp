@@ -20,7 +20,6 @@ namespace {
 
 using namespace mm::store::rules;
 using pg::Connection;
-using pg::in_transaction;
 using pg::Param;
 using pg::Result;
 
@@ -139,14 +138,33 @@ class PgStore final : public Store {
     if (opt_.master_key) check_master_key(*opt_.master_key);
   }
 
+  // pg::in_transaction, with now()'s reading kept for the transaction's length.
+  template <class F>
+  auto in_transaction(Connection& c, F&& fn, const std::string& isolation = "READ COMMITTED") {
+    struct Scope {
+      PgStore& s;
+      explicit Scope(PgStore& st) : s(st) { s.in_tx_ = true; }
+      ~Scope() {
+        s.in_tx_ = false;
+        s.tx_now_.reset();
+      }
+    } scope(*this);
+    return pg::in_transaction(c, std::forward<F>(fn), isolation);
+  }
+
   int schema_version() override {
     std::lock_guard<std::mutex> l(m_);
     return static_cast<int>(c_.exec("SELECT COALESCE(MAX(version), 0) FROM schema_version").i64(0, 0));
   }
   BlobStore& blobs() override { return blobs_; }
+  // Inside a transaction, one reading of the database clock serves every timestamp it writes:
+  // one round trip, and one instant per state transition.
   Millis now() override {
     if (opt_.clock) return opt_.clock();
-    return c_.exec("SELECT mm_now_ms()", {}, "reading the database clock").i64(0, 0);
+    if (tx_now_) return *tx_now_;
+    const Millis t = c_.exec("SELECT mm_now_ms()", {}, "reading the database clock").i64(0, 0);
+    if (in_tx_) tx_now_ = t;
+    return t;
   }
 
   // ------------------------------------------------------------ customers and keys
@@ -897,6 +915,8 @@ class PgStore final : public Store {
   StoreOptions opt_;
   std::mutex m_;
   Connection c_;
+  bool in_tx_ = false;  // guarded by m_, as c_ is
+  std::optional<Millis> tx_now_;
   PgBlobStore blobs_;
   std::mt19937_64 rng_;
 };
