@@ -25,26 +25,31 @@ std::string bench_dir() {
   return dir;
 }
 
-void BM_NoopJob(benchmark::State& state) {
-  mm::store::StoreOptions o;
-  o.db_path = bench_dir() + "/queue-" + std::to_string(state.range(0)) + ".db";
-  o.synchronous_full = state.range(0) != 0;
-  auto s = mm::store::open_sqlite_store(o);
+// Each iteration: a no-op job enqueued, claimed and completed by this thread's worker.
+void run_noop_jobs(benchmark::State& state, mm::store::Store& s) {
   std::string worker = "bench-" + std::to_string(state.thread_index());
   mm::store::JobSpec spec;
   spec.kind = "noop";
   std::int64_t done = 0;
   for (auto _ : state) {
-    s->enqueue(spec, worker);
-    auto j = s->claim(worker, 60'000);
+    s.enqueue(spec, worker);
+    auto j = s.claim(worker, 60'000);
     if (!j) {
       state.SkipWithError("claim returned nothing");
       break;
     }
-    s->complete(j->id, worker, {});
+    s.complete(j->id, worker, {});
     ++done;
   }
   state.SetItemsProcessed(done);
+}
+
+void BM_NoopJob(benchmark::State& state) {
+  mm::store::StoreOptions o;
+  o.db_path = bench_dir() + "/queue-" + std::to_string(state.range(0)) + ".db";
+  o.synchronous_full = state.range(0) != 0;
+  auto s = mm::store::open_sqlite_store(o);
+  run_noop_jobs(state, *s);
 }
 BENCHMARK(BM_NoopJob)->Arg(1)->Arg(0)->Threads(1)->Threads(2)->UseRealTime()->Unit(benchmark::kMicrosecond);
 
@@ -71,21 +76,7 @@ void BM_NoopJobPostgres(benchmark::State& state) {
     o.blob_dir = bench_dir() + "/pg-blobs";
     s = mm::store::open_postgres_store(postgres()->conninfo("queue"), o);
   }
-  std::string worker = "bench-" + std::to_string(state.thread_index());
-  mm::store::JobSpec spec;
-  spec.kind = "noop";
-  std::int64_t done = 0;
-  for (auto _ : state) {
-    s->enqueue(spec, worker);
-    auto j = s->claim(worker, 60'000);
-    if (!j) {
-      state.SkipWithError("claim returned nothing");
-      break;
-    }
-    s->complete(j->id, worker, {});
-    ++done;
-  }
-  state.SetItemsProcessed(done);
+  run_noop_jobs(state, *s);
 }
 BENCHMARK(BM_NoopJobPostgres)->Threads(1)->Threads(2)->UseRealTime()->Unit(benchmark::kMicrosecond);
 
