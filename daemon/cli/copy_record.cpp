@@ -140,7 +140,7 @@ CopyRecord record_from_json(const std::string& text, const std::string& source) 
     r.basis_fingerprint = c.at("basis_fingerprint").get<std::string>();
     const json& w = j.at("watermark");
     const int method = w.at("method").get<int>();
-    if (method != 1 && method != 2) fail("watermark.method must be 1 or 2");
+    if (method < 1 || method > 3) fail("watermark.method must be 1, 2 or 3");
     r.params.method = static_cast<Method>(method);
     r.params.strength = w.at("strength").get<double>();
     r.params.threshold = w.at("threshold").get<double>();

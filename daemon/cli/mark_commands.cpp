@@ -115,8 +115,8 @@ void add_embed_command(CLI::App& app) {
   c->add_option("-m,--message", a->message,
                 "text to hide: 1.." + std::to_string(kMaxMessageBytes) + " bytes of UTF-8 (8 bits per byte)")
       ->required();
-  c->add_option("--method", a->method, "1: multiplicative, eq. (8); 2: additive below T, eq. (9)")
-      ->capture_default_str()->check(CLI::IsMember({1, 2}));
+  c->add_option("--method", a->method, "1: multiplicative, eq. (8); 2: additive below T, eq. (9); 3: uniform, every coefficient by T a")
+      ->capture_default_str()->check(CLI::IsMember({1, 2, 3}));
   c->add_option("-a,--strength", a->strength, "strength a, in (0, 1)")
       ->capture_default_str()->check(CLI::Range(1e-9, 0.999999))->check(kFiniteNumber);
   c->add_option("-T,--threshold", a->threshold, "method 2: coefficients with |Cs| < T move by T a (unit-box units)")
@@ -239,7 +239,7 @@ void add_embed_command(CLI::App& app) {
 }
 
 // RMS per-vertex length of the displacement the mark makes (unit box): every marked coefficient
-// moves by a |Cs| or T a, and W is orthonormal. Depends on the original and the parameters only,
+// moves by coefficient_move() (a |Cs| or T a), and W is orthonormal. Depends on the original and the parameters only,
 // never on the key, so decisions based on it cannot favour a detection.
 double mark_rms(const Control& c, int message_bits, const EmbedParams& p) {
   const Points cs = to_spectral(c.basis, c.normalized.points);
@@ -248,8 +248,7 @@ double mark_rms(const Control& c, int message_bits, const EmbedParams& p) {
   double sum = 0;
   for (int j = 0; j < marked; ++j) {
     const double v = cs(c.basis.num_components + j / 3, j % 3);
-    const double move = p.method == Method::Additive && std::abs(v) < p.threshold ? p.threshold * p.strength
-                                                                                   : std::abs(v) * p.strength;
+    const double move = coefficient_move(p, v).size;
     sum += move * move;
   }
   return std::sqrt(sum / c.normalized.num_vertices());

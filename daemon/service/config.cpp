@@ -202,9 +202,9 @@ Config parse_config(const std::string& text, const std::string& source, const st
     } else {
       c.known(w, "watermark.",
               {"method", "strength", "threshold", "message_bits", "max_vertices", "min_vertices", "share"});
-      std::string method = "additive";
-      c.string(w, "watermark.", "method", method, {"additive", "multiplicative"});
-      cfg.watermark.params.method = method == "additive" ? Method::Additive : Method::Multiplicative;
+      std::string method = method_name(cfg.watermark.params.method);
+      c.string(w, "watermark.", "method", method, {"uniform", "additive", "multiplicative"});
+      cfg.watermark.params.method = method_from_name(method);
       c.number(w, "watermark.", "strength", cfg.watermark.params.strength, 0, 1, true);
       c.number(w, "watermark.", "threshold", cfg.watermark.params.threshold, 0, 1e9, false);
       c.integer(w, "watermark.", "message_bits", cfg.watermark.message_bits, 8, 64);
@@ -402,7 +402,7 @@ std::map<std::string, std::string> flatten(const Config& c) {
           {"cad.linear_deflection", num(c.cad.linear_deflection)},
           {"cad.angular_deflection", num(c.cad.angular_deflection_degrees)},
           {"cad.copy_format", c.cad_copy_format},
-          {"watermark.method", c.watermark.params.method == Method::Additive ? "additive" : "multiplicative"},
+          {"watermark.method", method_name(c.watermark.params.method)},
           {"watermark.strength", num(c.watermark.params.strength)},
           {"watermark.threshold", num(c.watermark.params.threshold)},
           {"watermark.message_bits", std::to_string(c.watermark.message_bits)},

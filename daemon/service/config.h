@@ -59,7 +59,9 @@ struct Config {
   // recorded with the asset; cad.copy_format: the mesh format their copies are written in.
   TessellationOptions cad;
   std::string cad_copy_format = "3mf";
-  jobs::WatermarkSettings watermark;
+  // watermark.{method, strength, threshold, message_bits}: uniform moves, as strong as
+  // watermark.share lets them be (the strength is a cap that the share's budget lowers per part).
+  jobs::WatermarkSettings watermark{{Method::Uniform, 0.1, 0.05}, 32};
   int max_vertices = 4000;          // watermark.max_vertices: cap on the control polyhedron
   int min_mark_vertices = 200;      // watermark.min_vertices: smaller polyhedra are refined for the mark
   // watermark.share: the part of compression.tolerance the mark may use; the fit gets the rest, so

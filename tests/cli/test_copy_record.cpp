@@ -100,7 +100,7 @@ TEST(Record, MalformedRecordsNameTheSource) {
   };
   expect_bad(replace("\"format_version\": 1", "\"format_version\": 2"), "format_version 2");
   expect_bad(replace("\"message_bits\": 24", "\"message_bits\": 25"), "message_bits");
-  expect_bad(replace("\"method\": 1", "\"method\": 3"), "method");
+  expect_bad(replace("\"method\": 1", "\"method\": 4"), "method");
   expect_bad(replace("\"strength\": 0.02", "\"strength\": 1.5"), "strength");
   expect_bad(replace("\"nonce\": \"00", "\"nonce\": \"zz"), "nonce");
   expect_bad(replace("\"nonce\": \"00", "\"nonce\": \""), "nonce");

@@ -500,7 +500,7 @@ TEST(CliMark, BadInputsExit2NamingTheFileAndWriteNothing) {
   // Usage errors: option combinations that make no sense.
   EXPECT_EQ(meshmark(s, {"embed", o.original, o.alice, out, "-m", "x", "--level", "2"}).code, 64);
   EXPECT_EQ(meshmark(s, {"embed", o.original, o.alice, s / "o.off", "-m", "x", "--bits", "14"}).code, 64);
-  EXPECT_EQ(meshmark(s, {"embed", o.original, o.alice, out, "-m", "x", "--method", "3"}).code, 64);
+  EXPECT_EQ(meshmark(s, {"embed", o.original, o.alice, out, "-m", "x", "--method", "4"}).code, 64);
   EXPECT_EQ(meshmark(s, {"embed", o.original, o.alice, out, "-m", "\xff"}).code, 64);
   EXPECT_FALSE(exists(out));
 }

@@ -791,7 +791,7 @@ TEST_F(E2E, BatchRunUntilEmptyWithoutDaemon) {
     EXPECT_NEAR(res["fit_hausdorff"].get<double>() + res["mark_budget"].get<double>(), 0.005, 1e-12) << j.result_json;
     EXPECT_LE(res["fit_hausdorff"].get<double>(), 0.0025) << j.result_json;
     EXPECT_GT(res["strength"].get<double>(), 0) << j.result_json;
-    EXPECT_LE(res["strength"].get<double>(), 0.01) << j.result_json;
+    EXPECT_LE(res["strength"].get<double>(), 0.1) << j.result_json;  // watermark.strength caps it
     const mm::Mesh copy = mm::read_mesh(res["output"].get<std::string>());
     const mm::Mesh original = mm::read_mesh(mm::test::shared_mesh(json::parse(j.payload_json)["name"].get<std::string>()));
     EXPECT_LE(mm::surface_distance(original, copy).hausdorff_relative(), 0.005) << j.result_json;

@@ -33,6 +33,7 @@ Mesh torus() {
 
 const EmbedParams kMethod1{Method::Multiplicative, 0.01, 0.05};
 const EmbedParams kMethod2{Method::Additive, 0.01, 0.05};
+const EmbedParams kUniform{Method::Uniform, 0.01, 0.05};
 
 bool same_bytes(const Points& a, const Points& b) {
   return a.rows() == b.rows() &&
@@ -103,17 +104,19 @@ void expect_perfect(const Mesh& mesh, const EmbedParams& params) {
   EXPECT_FALSE(blind.message_known);
 }
 
-TEST(Watermark, UnattackedIsPerfectOnSyntheticMeshBothMethods) {
+TEST(Watermark, UnattackedIsPerfectOnSyntheticMeshEveryMethod) {
   expect_perfect(torus(), kMethod1);
   expect_perfect(torus(), kMethod2);
+  expect_perfect(torus(), kUniform);
   expect_perfect(torus(), {Method::Multiplicative, 0.1, 0.05});
   expect_perfect(torus(), {Method::Additive, 0.1, 0.05});
 }
 
-TEST(Watermark, UnattackedIsPerfectOnFandiskBothMethods) {
+TEST(Watermark, UnattackedIsPerfectOnFandiskEveryMethod) {
   MM_REQUIRE_SHARED_MESHES();
   expect_perfect(fandisk(), kMethod1);
   expect_perfect(fandisk(), kMethod2);
+  expect_perfect(fandisk(), kUniform);
 }
 
 // A polyhedron past the dense basis's limit is marked and read through the patched basis alike,
@@ -133,7 +136,7 @@ TEST(Watermark, PatchedBasisMarksAndReadsLikeTheDenseOne) {
   }
 }
 
-TEST(Watermark, SpectralChangeFollowsEquations8And9) {
+TEST(Watermark, SpectralChangeFollowsEquations8And9AndUniform) {
   const Mesh m = torus();
   const SpectralBasis basis = compute_basis(m);
   const auto msg = seeded_message(20, 4);
@@ -141,7 +144,7 @@ TEST(Watermark, SpectralChangeFollowsEquations8And9) {
   const Nonce nonce = seeded_nonce(4);
   const MarkSequence seq = make_sequence(msg, usable_coefficients(basis), key, nonce);
   const Points cs = to_spectral(basis, m.points);
-  for (const EmbedParams& p : {kMethod1, EmbedParams{Method::Additive, 0.02, 0.3}}) {
+  for (const EmbedParams& p : {kMethod1, EmbedParams{Method::Additive, 0.02, 0.3}, kUniform}) {
     const Points cs2 = to_spectral(basis, embed(basis, m.points, msg, key, nonce, p));
     int additive = 0;
     for (int j = 0; j < usable_coefficients(basis); ++j) {
@@ -149,7 +152,7 @@ TEST(Watermark, SpectralChangeFollowsEquations8And9) {
       double expected = cs(k, axis);
       if (j < static_cast<int>(seq.b.size())) {
         const double ab = p.strength * seq.b[j];
-        if (p.method == Method::Additive && std::abs(cs(k, axis)) < p.threshold) {
+        if (p.method == Method::Uniform || (p.method == Method::Additive && std::abs(cs(k, axis)) < p.threshold)) {
           expected += p.threshold * ab;
           ++additive;
         } else {
@@ -160,6 +163,9 @@ TEST(Watermark, SpectralChangeFollowsEquations8And9) {
     }
     if (p.method == Method::Additive) {
       EXPECT_GT(additive, 50);  // both branches exercised
+    }
+    if (p.method == Method::Uniform) {
+      EXPECT_EQ(additive, static_cast<int>(seq.b.size()));  // every marked coefficient by T a
     }
     // The zero-frequency (centroid) coefficient is untouched.
     EXPECT_NEAR(cs2(0, 0), cs(0, 0), 1e-13);

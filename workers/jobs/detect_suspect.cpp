@@ -26,8 +26,6 @@ constexpr double kCoveredExact = 0.6;
 constexpr double kAgreementTie = 0.05;
 constexpr int kMaxTied = 12;
 
-const char* method_name(Method m) { return m == Method::Additive ? "additive" : "multiplicative"; }
-
 // What a polyhedron row keeps of the original's shape (either may be absent: rows written before
 // footprints were kept have none).
 struct AssetShape {
@@ -227,7 +225,7 @@ std::string copy_params_json(const WatermarkSettings& s, const std::string& prep
 WatermarkSettings copy_settings(const std::string& params_json) {
   const json j = json::parse(params_json);
   WatermarkSettings s;
-  s.params.method = j.at("method").get<std::string>() == "additive" ? Method::Additive : Method::Multiplicative;
+  s.params.method = method_from_name(j.at("method").get<std::string>());
   s.params.strength = j.at("strength").get<double>();
   s.params.threshold = j.at("threshold").get<double>();
   s.message_bits = j.at("message_bits").get<int>();

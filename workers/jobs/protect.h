@@ -32,7 +32,7 @@ std::string weak_spread_warning(const std::string& name, const PreparedAsset& as
 
 struct StreamSettings {
   // The quantisation step (largest side / 2^bits) must stay well below the mark's move in the
-  // unit box (T a = 5e-4 by default): 16 bits give 1.5e-5.
+  // unit box (T a, 7e-4 or more at the default tolerance): 16 bits give 1.5e-5.
   int quant_bits = 16;
   std::map<std::string, std::string> metadata;  // codec rules; never secrets, never the payload
 };

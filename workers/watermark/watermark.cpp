@@ -13,7 +13,7 @@ namespace {
 constexpr double kRoundingFloor = 1e-11;
 
 void check_params(const EmbedParams& p) {
-  if (p.method != Method::Multiplicative && p.method != Method::Additive)
+  if (p.method != Method::Multiplicative && p.method != Method::Additive && p.method != Method::Uniform)
     throw std::invalid_argument("watermark: unknown method");
   if (!(std::isfinite(p.strength) && p.strength > 0 && p.strength < 1))
     throw std::invalid_argument("watermark: strength a must be in (0, 1)");
@@ -22,7 +22,7 @@ void check_params(const EmbedParams& p) {
 }
 
 bool additive(const EmbedParams& p, double cs) {
-  return p.method == Method::Additive && std::abs(cs) < p.threshold;
+  return p.method == Method::Uniform || (p.method == Method::Additive && std::abs(cs) < p.threshold);
 }
 
 // Coefficient j of the documented order: eigenvector num_components + j / 3, axis j % 3.
@@ -34,6 +34,21 @@ double coefficient(const SpectralBasis& basis, const Points& cs, int j) {
 }
 
 }  // namespace
+
+const char* method_name(Method method) {
+  switch (method) {
+    case Method::Multiplicative: return "multiplicative";
+    case Method::Additive: return "additive";
+    case Method::Uniform: return "uniform";
+  }
+  return "unknown";
+}
+
+Method method_from_name(const std::string& name) {
+  for (Method m : {Method::Multiplicative, Method::Additive, Method::Uniform})
+    if (name == method_name(m)) return m;
+  throw std::invalid_argument("watermark: unknown method \"" + name + "\"");
+}
 
 CoefficientMove coefficient_move(const EmbedParams& params, double c) {
   const bool add = additive(params, c);
@@ -75,7 +90,7 @@ Points embed(const SpectralBasis& basis, const Points& original, const std::vect
   for (int j = 0; j < static_cast<int>(seq.b.size()); ++j) {
     const double c = coefficient(basis, cs, j);
     const double ab = params.strength * seq.b[j];
-    // eq. (9) additive branch, else eq. (8): Cs' - Cs = a b Cs.
+    // eq. (9) additive branch (every coefficient for Uniform), else eq. (8): Cs' - Cs = a b Cs.
     coefficient(basis, delta, j) = additive(params, c) ? params.threshold * ab : c * ab;
   }
   return original + from_spectral(basis, delta);

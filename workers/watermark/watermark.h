@@ -19,12 +19,22 @@
 
 namespace mm {
 
-enum class Method { Multiplicative = 1, Additive = 2 };  // eq. (8) and eq. (9)
+// eq. (8), eq. (9), and Uniform: every marked coefficient moves by T a (eq. (9)'s additive branch
+// for all of them). The multiplicative moves |a C| put most of a mark's energy into the few
+// low-frequency coefficients of the part's shape, whose signs a random key matches with
+// probability 2^-k however strong they are; spread evenly, the same displacement budget gives
+// every coefficient a sign the noise can flip only rarely (docs/watermark.md, "Uniform").
+enum class Method { Multiplicative = 1, Additive = 2, Uniform = 3 };
+
+// "multiplicative", "additive", "uniform": the names copy records and the config use.
+const char* method_name(Method method);
+// Throws std::invalid_argument for another name.
+Method method_from_name(const std::string& name);
 
 struct EmbedParams {
   Method method = Method::Additive;
   double strength = 0.01;   // a, in (0, 1)
-  double threshold = 0.05;  // T (Method 2): coefficients with |Cs| < T are moved by T a b
+  double threshold = 0.05;  // T: coefficients with |Cs| < T (Method 2), or all (Uniform), move by T a b
 };
 
 // How embedding moves a coefficient of value c (eq. 8, 9) for a +1 sequence entry: by `size`, in
