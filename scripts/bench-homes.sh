@@ -41,5 +41,6 @@ bench_detect_run() {
   /usr/bin/time -f "%e %U %M" -o "$R/time" bash -c "cd '$R' && '$MM' run --until-empty --no-drops --config meshmarkd.json" \
     >"$R/run.txt" 2>"$R/run.log" || true
   "$MM" detections --home "$R/home" --json --limit 100000 >"$R/detections.json"
-  read -r wall user rss <"$R/time"
+  # The last line: time puts "Command exited with non-zero status N" first when a job failed.
+  read -r wall user rss < <(tail -n 1 "$R/time")
 }

@@ -119,7 +119,7 @@ void add_embed_command(CLI::App& app) {
       ->capture_default_str()->check(CLI::IsMember({1, 2, 3}));
   c->add_option("-a,--strength", a->strength, "strength a, in (0, 1)")
       ->capture_default_str()->check(CLI::Range(1e-9, 0.999999))->check(kFiniteNumber);
-  c->add_option("-T,--threshold", a->threshold, "method 2: coefficients with |Cs| < T move by T a (unit-box units)")
+  c->add_option("-T,--threshold", a->threshold, "method 2: coefficients with |Cs| < T move by T a; method 3: all do (unit-box units)")
       ->capture_default_str()->check(CLI::Range(0.0, 10.0))->check(kFiniteNumber);
   c->add_option("--level", a->level, "mesh OUT: write the watermarked surface subdivided L times")
       ->check(CLI::Range(0, 5));
@@ -239,8 +239,8 @@ void add_embed_command(CLI::App& app) {
 }
 
 // RMS per-vertex length of the displacement the mark makes (unit box): every marked coefficient
-// moves by coefficient_move() (a |Cs| or T a), and W is orthonormal. Depends on the original and the parameters only,
-// never on the key, so decisions based on it cannot favour a detection.
+// moves by coefficient_move() (a |Cs| or T a), and W is orthonormal. Depends on the original and
+// the parameters only, never on the key, so decisions based on it cannot favour a detection.
 double mark_rms(const Control& c, int message_bits, const EmbedParams& p) {
   const Points cs = to_spectral(c.basis, c.normalized.points);
   const int usable = usable_coefficients(c.basis);
