@@ -203,7 +203,9 @@ Config parse_config(const std::string& text, const std::string& source, const st
       c.known(w, "watermark.",
               {"method", "strength", "threshold", "message_bits", "max_vertices", "min_vertices", "share"});
       std::string method = method_name(cfg.watermark.params.method);
-      c.string(w, "watermark.", "method", method, {"uniform", "additive", "multiplicative"});
+      std::set<std::string> methods;
+      for (Method m : kMethods) methods.insert(method_name(m));
+      c.string(w, "watermark.", "method", method, methods);
       cfg.watermark.params.method = method_from_name(method);
       c.number(w, "watermark.", "strength", cfg.watermark.params.strength, 0, 1, true);
       c.number(w, "watermark.", "threshold", cfg.watermark.params.threshold, 0, 1e9, false);

@@ -176,6 +176,8 @@ jobs::PrepareParams prepare_params(const Config& cfg) {
   pp.fallback_angles = cfg.fallback_angles;
   pp.max_control_vertices = cfg.max_vertices;
   pp.min_mark_vertices = cfg.min_mark_vertices;
+  // A copy detection would refuse is not issued: decoded at fewer levels, or the part refused.
+  pp.max_copy_triangles = cfg.max_triangles;
   return pp;
 }
 

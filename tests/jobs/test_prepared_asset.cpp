@@ -72,7 +72,8 @@ TEST(PreparedAsset, CacheKeyNamesEveryCompressionOption) {
                       +[](PrepareParams& q) { q.fallback_angles = {}; },
                       +[](PrepareParams& q) { q.fallback_angles = {30, 20}; },
                       +[](PrepareParams& q) { q.min_mark_vertices = 0; },
-                      +[](PrepareParams& q) { q.min_mark_vertices = 400; }}) {
+                      +[](PrepareParams& q) { q.min_mark_vertices = 400; },
+                      +[](PrepareParams& q) { q.max_copy_triangles = 1000000; }}) {
     PrepareParams q;
     change(q);
     EXPECT_NE(q.key(), k);
@@ -118,6 +119,53 @@ TEST(PreparedAsset, SmallPolyhedraAreRefinedForTheMarkOnTheSameSurface) {
   EXPECT_EQ(refine_for_mark(once, 200, 150), 1);
   EXPECT_LE(once.num_vertices(), 150);
   EXPECT_GT(once.num_vertices(), 24);
+}
+
+// A copy over max_copy_triangles is decoded at the highest level within it, when the copy there
+// still meets the tolerance by the dense measurement (which becomes the fit's numbers, so the
+// mark gets what that level leaves); else the part is refused with both counts.
+TEST(PreparedAsset, CopiesOverTheTriangleLimitAreDecodedLowerOrRefused) {
+  MM_REQUIRE_SHARED_MESHES();
+  const Mesh m = read_mesh(test::shared_mesh("abc9.stl"));
+  // At 0.25 % (the daemon's fit share of the default tolerance) abc9 fits with a few hundred
+  // control vertices, dense enough that one level less still meets it.
+  PrepareParams p;
+  p.min_mark_vertices = 0;
+  p.compression.tolerance = 0.0025;
+  const PreparedAsset full = prepare_asset(m, p, "abc9.stl");
+  ASSERT_EQ(full.levels, 3);
+  const long long at3 = subdivided_triangle_count(full.control, 3), at2 = subdivided_triangle_count(full.control, 2);
+  p.max_copy_triangles = at3;  // the limit itself is allowed
+  EXPECT_EQ(prepare_asset(m, p, "abc9.stl").levels, 3);
+  p.max_copy_triangles = at3 - 1;
+  const PreparedAsset lower = prepare_asset(m, p, "abc9.stl");
+  EXPECT_EQ(lower.levels, 2);
+  EXPECT_EQ(lower.control.points, full.control.points);  // the same polyhedron, decoded less
+  const SurfaceDistance d = decoded_distance(m, lower.compression.control, 2);
+  std::cout << "abc9: " << full.control.num_vertices() << " control vertices; level 3 "
+            << 100 * full.compression.stats.hausdorff / full.compression.stats.diagonal << " %, level 2 "
+            << 100 * d.hausdorff_relative() << " % (" << at2 << " triangles)\n";
+  EXPECT_LE(d.hausdorff_relative(), p.compression.tolerance);
+  EXPECT_EQ(lower.compression.stats.hausdorff, d.hausdorff);
+  EXPECT_EQ(lower.compression.stats.rms, d.rms);
+  EXPECT_EQ(triangle_count(make_copy_files(lower, lower.compression.control, {}, true).decoded), at2);
+  // At 0.5 % abc9 fits with a few dozen vertices, whose level-2 surface lies outside it: refused,
+  // naming both counts.
+  PrepareParams loose;
+  loose.min_mark_vertices = 0;
+  const PreparedAsset coarse = prepare_asset(m, loose, "abc9.stl");
+  const long long coarse3 = subdivided_triangle_count(coarse.control, 3);
+  loose.max_copy_triangles = coarse3 - 1;
+  try {
+    prepare_asset(m, loose, "abc9.stl");
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.source(), "abc9.stl");
+    const std::string what = e.what();
+    EXPECT_NE(what.find(std::to_string(coarse3) + " triangles, over the copy limit"), std::string::npos) << what;
+    EXPECT_NE(what.find("at level 2 (" + std::to_string(subdivided_triangle_count(coarse.control, 2)) +
+                        " triangles) it misses the tolerance"), std::string::npos) << what;
+  }
 }
 
 // compression.coarsen = true in the daemon's config: the prepared polyhedron is the coarsened

@@ -6,12 +6,14 @@
 #include <cstring>
 #include <limits>
 #include <new>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "meshio/read_mesh.h"
 #include "compression/compress_part.h"
 #include "quality/surface_distance.h"
+#include "subdivision/decompress.h"
 #include "subdivision/subdivide.h"
 
 namespace mm::jobs {
@@ -108,7 +110,7 @@ std::string PrepareParams::key() const {
          ";budget_rounds=" + std::to_string(kRoundsAtBudget) + (c.rail_quads ? ";quads=rail" : "") + rounds_schedule_key(c) + fit_sampling_key() +
          (c.seed != 1 ? ";seed=" + std::to_string(c.seed) : "") + fallback_key(fallback_angles) +
          (min_mark_vertices > 0 ? ";mark_min_vertices=" + std::to_string(min_mark_vertices) : "") +
-         ";basis=dense-kirchhoff";
+         (max_copy_triangles > 0 ? ";copy_triangles=" + std::to_string(max_copy_triangles) : "") + ";basis=dense-kirchhoff";
 }
 
 int refine_for_mark(Mesh& control, int min_vertices, int max_vertices) {
@@ -209,6 +211,40 @@ double signature_distance(const ShapeSignature& a, const ShapeSignature& b) {
   return d;
 }
 
+namespace {
+
+// Lowers result.levels to the highest level whose decoded copy has at most
+// params.max_copy_triangles triangles, and takes the dense measurement there as the fit's
+// numbers (the mark's budget is what they leave of the tolerance).
+void choose_copy_levels(CompressResult& result, const MeasuredSurface& measured, const PrepareParams& params,
+                        const std::string& source) {
+  const long long limit = params.max_copy_triangles;
+  if (limit <= 0 || !result.tolerance_met) return;
+  const long long full = subdivided_triangle_count(result.control, result.levels);
+  if (full <= limit) return;
+  int level = result.levels - 1;
+  while (level > 0 && subdivided_triangle_count(result.control, level) > limit) --level;
+  const long long triangles = subdivided_triangle_count(result.control, level);
+  const std::string over = "the copy decoded at level " + std::to_string(result.levels) + " would have " +
+                           std::to_string(full) + " triangles, over the copy limit of " + std::to_string(limit) +
+                           " (max_triangles)";
+  if (triangles > limit)
+    throw InputError(source, over + ", and so would the control polyhedron itself (" + std::to_string(triangles) + ")");
+  const double tolerance = params.compression.tolerance;
+  const std::optional<SurfaceDistance> d = decoded_distance_within(measured, result.control, level, tolerance);
+  if (!d)
+    throw InputError(source, over + "; decoded at level " + std::to_string(level) + " (" + std::to_string(triangles) +
+                                 " triangles) it misses the tolerance of " + shortest_text(100 * tolerance) +
+                                 " % of the diagonal; raise max_triangles or compression.tolerance");
+  result.levels = level;
+  result.stats.hausdorff = d->hausdorff;
+  result.stats.rms = d->rms;
+  result.stats.mean = d->mean;
+  result.stats.diagonal = d->diagonal;
+}
+
+}  // namespace
+
 PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
                             const std::string& source) {
   const int n = original.num_vertices();
@@ -232,6 +268,7 @@ PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
     for (const double angle : params.fallback_angles)
       if (angle < params.compression.angle_degrees) po.fallback_angles.push_back(angle);
     a.compression = fit_part(original, measured, po, source).kept().result;
+    choose_copy_levels(a.compression, measured, params, source);
   } catch (const InputError&) {
     throw;
   } catch (const std::bad_alloc&) {

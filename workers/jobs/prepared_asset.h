@@ -35,6 +35,12 @@ struct PrepareParams {
   // the p-value floor a small part's few coefficients set (3n coefficients for n vertices).
   // 0: never. In key() when not 0.
   int min_mark_vertices = 200;
+  // A copy decodes the polyhedron at compression.levels; when that gives more triangles than
+  // this, at the highest level that does not, if the copy there still meets the tolerance by the
+  // dense measurement; else the part is refused. A dense polyhedron (a tight tolerance) would
+  // otherwise issue copies hundreds of times the part's size that detection refuses by the same
+  // limit (the daemon's max_triangles). 0: no limit. In key() when not 0.
+  long long max_copy_triangles = 0;
   std::string key() const;  // canonical cache key of the preparation method and its options
 };
 
@@ -72,9 +78,10 @@ struct PreparedAsset {
 // carried, so the limit surface is unchanged.
 int refine_for_mark(Mesh& control, int min_vertices, int max_vertices);
 
-// Compresses the part (throws InputError(source, reason) when it cannot be compressed or the
-// control polyhedron exceeds the basis cap; std::invalid_argument for a budget above the cap), normalises the control polyhedron and computes its
-// exact spectral basis.
+// Compresses the part (throws InputError(source, reason) when it cannot be compressed, the
+// control polyhedron exceeds the basis cap or no level within max_copy_triangles meets the
+// tolerance; std::invalid_argument for a budget above the cap), chooses the copy's level,
+// normalises the control polyhedron and computes its exact spectral basis.
 PreparedAsset prepare_asset(const Mesh& original, const PrepareParams& params,
                             const std::string& source);
 

@@ -45,7 +45,7 @@ const char* method_name(Method method) {
 }
 
 Method method_from_name(const std::string& name) {
-  for (Method m : {Method::Multiplicative, Method::Additive, Method::Uniform})
+  for (Method m : kMethods)
     if (name == method_name(m)) return m;
   throw std::invalid_argument("watermark: unknown method \"" + name + "\"");
 }
@@ -88,10 +88,8 @@ Points embed(const SpectralBasis& basis, const Points& original, const std::vect
   const Points cs = to_spectral(basis, original);
   Points delta = Points::Zero(cs.rows(), 3);
   for (int j = 0; j < static_cast<int>(seq.b.size()); ++j) {
-    const double c = coefficient(basis, cs, j);
-    const double ab = params.strength * seq.b[j];
-    // eq. (9) additive branch (every coefficient for Uniform), else eq. (8): Cs' - Cs = a b Cs.
-    coefficient(basis, delta, j) = additive(params, c) ? params.threshold * ab : c * ab;
+    const CoefficientMove move = coefficient_move(params, coefficient(basis, cs, j));
+    coefficient(basis, delta, j) = move.size * move.direction * seq.b[j];
   }
   return original + from_spectral(basis, delta);
 }

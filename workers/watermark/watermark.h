@@ -23,8 +23,9 @@ namespace mm {
 // for all of them). The multiplicative moves |a C| put most of a mark's energy into the few
 // low-frequency coefficients of the part's shape, whose signs a random key matches with
 // probability 2^-k however strong they are; spread evenly, the same displacement budget gives
-// every coefficient a sign the noise can flip only rarely (docs/watermark.md, "Uniform").
+// every coefficient a sign the noise can flip only rarely (docs/watermark.md, "Uniform moves").
 enum class Method { Multiplicative = 1, Additive = 2, Uniform = 3 };
+constexpr Method kMethods[] = {Method::Multiplicative, Method::Additive, Method::Uniform};
 
 // "multiplicative", "additive", "uniform": the names copy records and the config use.
 const char* method_name(Method method);
