@@ -84,6 +84,24 @@ TEST(CompressPart, TheStreamIsSearchedAmongThePolyhedraThatMetTheTolerance) {
   EXPECT_EQ(c.control, c.fits.polyhedra.front().second);  // quick: the fewest vertices that met it
 }
 
+// Out of reach, the stream is the closest fit's (the one fitted on to the budget), whichever
+// angle it was fitted at: the first angle's rounds stopped earlier.
+TEST(CompressPart, AMissedToleranceWritesTheClosestFit) {
+  const MeasuredSurface measured(part());
+  PartOptions o;
+  o.angles = {35.0, 50.0};
+  o.fit.tolerance = 1e-5;  // out of reach of 30 control vertices (as above)
+  o.fit.max_vertices = 30;
+  o.stream.quick = true;
+  const CompressedPart c = compress_part(part(), measured, o, "part");
+  ASSERT_TRUE(c.fits.polyhedra.empty());
+  ASSERT_GT(c.fits.fits.size(), 1u);
+  ASSERT_NE(&c.fits.kept(), &c.fits.fits.front());  // the extended fit went to the back
+  EXPECT_EQ(c.fit, &c.fits.kept());
+  EXPECT_EQ(c.control, &c.fits.kept().result.control);
+  EXPECT_TRUE(stopped_at_budget(c.fit->result, o.fit)) << tolerance_miss_reason(c.fit->result, o.fit);
+}
+
 TEST(CompressPart, CoarseTessellationIsSplitWhenItsVerticesRunOut) {
   // Twelve sectors: 30-degree facets, smooth to a 35-degree crease angle, which a subdivision
   // surface through the part's own vertices rounds off by more than the tolerance.

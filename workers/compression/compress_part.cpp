@@ -217,8 +217,11 @@ CompressedPart compress_part(const Mesh& part, const MeasuredSurface& measured, 
   std::vector<const FitAtAngle*> from;  // the fit each polyhedron came from
   for (const auto& [fit, control] : out.fits.polyhedra) polyhedra.push_back(control), from.push_back(fit);
   if (polyhedra.empty()) {
-    polyhedra.push_back(&out.fits.fits.front().result.control);
-    from.push_back(&out.fits.fits.front());
+    // The closest fit: after extend() that is the one fitted on to the budget, which need not be
+    // the first angle's.
+    const FitAtAngle& closest = out.fits.kept();
+    polyhedra.push_back(&closest.result.control);
+    from.push_back(&closest);
   }
   out.stream = smallest_stream(measured, polyhedra, search, source);
   out.control = polyhedra[static_cast<std::size_t>(out.stream.polyhedron)];
