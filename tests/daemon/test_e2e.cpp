@@ -161,16 +161,22 @@ struct E2E : ::testing::Test {
   // role: "decoded" (the mesh) or "stream" (the .mmc).
   fs::path output_of(mm::store::Store& st, const std::string& customer, const std::string& mesh,
                      const std::string& role = "decoded") {
+    const json f = issued_file(st, customer, mesh, role);
+    return f.is_null() ? fs::path() : fs::path(f["path"].get<std::string>());
+  }
+  // The record of that file (path, format, levels, ...), null when there is none.
+  json issued_file(mm::store::Store& st, const std::string& customer, const std::string& mesh,
+                   const std::string& role = "decoded") {
     auto cust = st.find_customer(customer);
     for (const auto& c : st.list_copies()) {
       auto a = st.get_asset(c.asset_id);
       if (c.customer_id == cust->id && a && a->name == mesh) {
         json outputs = json::parse(c.outputs_json);  // outlives the loop over its files
         for (const auto& f : outputs["files"])
-          if (f["role"] == role) return f["path"].get<std::string>();
+          if (f["role"] == role) return f;
       }
     }
-    return {};
+    return nullptr;
   }
   // Every issued file exists with its recorded hash; the mesh reads back, the stream decodes.
   void expect_outputs_intact(const mm::store::IssuedCopy& c) {
@@ -954,15 +960,7 @@ TEST_F(E2E, CopiesStayWithinMaxTrianglesAndAreTraced) {
   ASSERT_EQ(meshmark_with_config("submit protect --customer alpha " + part), 0);
   run_until_empty();
   const auto levels_of = [&](const std::string& customer) {
-    auto st = store();
-    const auto cust = st->find_customer(customer);
-    for (const auto& c : st->list_copies())
-      if (c.customer_id == cust->id) {
-        const json outputs = json::parse(c.outputs_json);  // outlives the loop over its files
-        for (const auto& f : outputs["files"])
-          if (f["role"] == "decoded") return f["levels"].get<int>();
-      }
-    return -1;
+    return issued_file(*store(), customer, "abc9.stl").value("levels", -1);
   };
   const long long full = mm::triangle_count(mm::read_mesh(output_of(*store(), "alpha", "abc9.stl").string()));
   write_config({{"output_format", "stl"}, {"max_triangles", full - 1}});
